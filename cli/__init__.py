@@ -1,0 +1,1 @@
+"""vfit's command line (installed as the ``vfit_cli`` package, command ``vfit``)."""

@@ -1,0 +1,112 @@
+"""Shared CLI pieces: validated number types, error handling, JSON output. Imports click only."""
+from __future__ import annotations
+
+import functools
+import json
+import math
+import sys
+
+import click
+
+
+class Quantity(click.ParamType):
+    """A finite number in ``[lo, hi]`` with a unit, e.g. ``Quantity('cm', 1, 400)``."""
+
+    name = "number"
+
+    def __init__(self, unit: str, lo: float, hi: float):
+        self.unit, self.lo, self.hi = unit, lo, hi
+
+    def get_metavar(self, param, ctx=None):
+        return self.unit.upper()
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            x = float(value)
+        else:
+            try:
+                x = float(str(value).strip())
+            except ValueError:
+                self.fail(f"{value!r} is not a number", param, ctx)
+        if not math.isfinite(x):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        if x <= 0:
+            self.fail(f"{value} {self.unit} must be positive", param, ctx)
+        if not self.lo <= x <= self.hi:
+            self.fail(f"{value} {self.unit} is absurd (expected {self.lo:g}-{self.hi:g} {self.unit})", param, ctx)
+        return x
+
+
+class Gender(click.ParamType):
+    """'female', 'male' or a number in 0..1 (0 female, 1 male)."""
+
+    name = "gender"
+
+    def get_metavar(self, param, ctx=None):
+        return "female|male|0..1"
+
+    def convert(self, value, param, ctx):
+        text = str(value).strip().lower()
+        if text in ("female", "f", "male", "m"):
+            return "female" if text.startswith("f") else "male"
+        try:
+            x = float(text)
+        except ValueError:
+            self.fail(f"{value!r} is not female, male or a number in 0..1", param, ctx)
+        if not (math.isfinite(x) and 0.0 <= x <= 1.0):
+            self.fail(f"{value!r} is not in 0..1", param, ctx)
+        return x
+
+
+def handle_errors(func):
+    """Turn vfit's own errors into one line on stderr and their exit code (2 for bad input)."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        from vfit_engine.errors import VfitError
+
+        try:
+            return func(*args, **kwargs)
+        except VfitError as exc:
+            click.echo(f"Error: {exc}", err=True)
+            sys.exit(exc.exit_code)
+        except MemoryError:
+            click.echo("Error: out of memory (input too large?)", err=True)
+            sys.exit(2)
+
+    return wrapper
+
+
+def check_output_path(path: str, suffixes: tuple) -> None:
+    """Fail early (before any long computation) on an output path that cannot be written."""
+    import os
+
+    from vfit_engine.errors import InputError
+
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in suffixes:
+        raise InputError(f"cannot write {path}: use one of {', '.join(suffixes)}")
+    d = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(d):
+        raise InputError(f"cannot write {path}: directory {d} does not exist")
+    if not os.access(d, os.W_OK):
+        raise InputError(f"cannot write {path}: directory {d} is not writable")
+    if os.path.isdir(path):
+        raise InputError(f"cannot write {path}: it is a directory")
+
+
+def write_json(path: str, payload: dict) -> None:
+    """Write a JSON report atomically."""
+    from vfit_engine.io.atomic import atomic_write
+
+    with atomic_write(path) as f:
+        json.dump(payload, f, indent=2, sort_keys=False)
+        f.write("\n")
+
+
+def fmt_table(rows: list, header: list) -> str:
+    """A plain aligned text table."""
+    cols = [header] + [[str(c) for c in r] for r in rows]
+    widths = [max(len(r[i]) for r in cols) for i in range(len(header))]
+    line = lambda r: "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
+    return "\n".join([line(header), line(["-" * w for w in widths])] + [line(r) for r in cols[1:]])

@@ -1,0 +1,1 @@
+"""Body model data (CC0 MakeHuman assets), shipped inside the wheel as vfit_engine.data."""

@@ -1,0 +1,113 @@
+"""The morph solver: every requested measurement met to 1 mm at once, holds, ranges, weight."""
+import numpy as np
+import pytest
+
+from tape import ruler_lengths, tape_measure
+from vfit_engine.body.morph import CHANNELS, GIRTHS, SECONDARY, build_sliders
+from vfit_engine.errors import InputError
+
+MM = 1e-3
+
+
+def _assert_met(res, targets, tol=1.0 * MM):
+    for k, want in targets.items():
+        assert abs(res.measurement.values[k] - want) <= tol, (k, res.measurement.values[k], want)
+
+
+def test_acceptance_iso_against_independent_tape(morpher, body_model):
+    """vfit morph --waist 72 --bust 90 --hips 98 --height 168: an independent tape reads each within 1 mm."""
+    targets = {"waist": 0.72, "bust": 0.90, "hips": 0.98, "height": 1.68}
+    res = morpher.solve(targets)
+    tape = tape_measure(res.verts, body_model.body_quads)
+    for k, want in targets.items():
+        assert abs(tape[k] - want) <= 1 * MM, (k, tape[k])
+
+
+def test_acceptance_makehuman_rulers(morpher):
+    targets = {"waist": 0.72, "bust": 0.90, "hips": 0.98, "height": 1.68}
+    res = morpher.solve(targets, definition="makehuman")
+    rulers = ruler_lengths(res.verts)
+    assert abs(rulers["waist-circ"] - 0.72) <= MM
+    assert abs(rulers["bust-circ"] - 0.90) <= MM
+    assert abs(rulers["hips-circ"] - 0.98) <= MM
+    assert abs(res.measurement.values["height"] - 1.68) <= MM
+
+
+@pytest.mark.slow
+def test_fifty_random_feasible_target_sets(morpher, measurer):
+    """Targets measured on random bodies of the model (so feasible by construction) are all met to 1 mm."""
+    rng = np.random.default_rng(20261121)
+    n_ch = len(GIRTHS) + len(SECONDARY)
+    worst = 0.0
+    for case in range(50):
+        gender = ["female", "male"][case % 2]
+        g = 0.0 if gender == "female" else 1.0
+        s = rng.uniform(-0.6, 0.6, n_ch)
+        s[len(GIRTHS):] *= 0.5
+        mac = morpher.macro(g, rng.uniform(0.3, 0.7), rng.uniform(-0.4, 0.4))
+        meas = measurer.measure(morpher._body(mac, s), "iso")
+        k = rng.integers(1, 6)
+        names = list(rng.choice(["height", "bust", "underbust", "waist", "hips", "neck", "thigh", "calf"], k,
+                                replace=False))
+        targets = {n: meas.values[n] for n in names}
+        res = morpher.solve(targets, gender=gender)
+        _assert_met(res, targets)
+        worst = max(worst, max(abs(res.measurement.values[n] - v) for n, v in targets.items()))
+    print(f"worst error over 50 random target sets: {worst / MM:.4f} mm")
+
+
+@pytest.mark.parametrize("waist_change_cm", [-3.0, 2.0])
+def test_waist_alone_cross_talk(morpher, waist_change_cm):
+    """Changing the waist alone moves bust and hips by <= 2 mm (report the cross-talk)."""
+    start = morpher.solve({}, gender="female").measurement.values
+    res = morpher.solve({"waist": start["waist"] + waist_change_cm / 100})
+    moved = {k: abs(res.measurement.values[k] - start[k]) / MM for k in ("bust", "hips", "underbust", "height")}
+    print(f"waist {waist_change_cm:+} cm -> cross-talk (mm): {moved}")
+    assert moved["bust"] <= 2.0 and moved["hips"] <= 2.0 and moved["height"] <= 0.5
+
+
+def test_unreachable_target_names_the_range(morpher):
+    with pytest.raises(InputError, match=r"waist 20\.0 cm \(reachable \d+\.\d-\d+\.\d cm"):
+        morpher.solve({"waist": 0.20})
+
+
+def test_contradictory_targets(morpher):
+    with pytest.raises(InputError, match="cannot be met together"):
+        morpher.solve({"bust": 0.70, "underbust": 0.90})
+
+
+def test_weight_and_height(morpher):
+    res = morpher.solve({"height": 1.75}, weight_kg=70.0)
+    assert abs(res.measurement.values["height"] - 1.75) <= MM
+    assert res.measurement.mass_kg == pytest.approx(70.0, rel=0.01)
+    heavy = morpher.solve({"height": 1.75}, weight_kg=85.0)
+    assert heavy.measurement.values["waist"] > res.measurement.values["waist"] + 0.03
+
+
+def test_weight_with_girths(morpher):
+    res = morpher.solve({"waist": 0.75, "hips": 1.02}, weight_kg=62.0)
+    _assert_met(res, {"waist": 0.75, "hips": 1.02})
+    assert res.measurement.mass_kg == pytest.approx(62.0, rel=0.01)
+
+
+def test_semantic_defaults(morpher):
+    f = morpher.solve({}, gender="female").measurement
+    m = morpher.solve({}, gender="male").measurement
+    assert m.values["height"] > f.values["height"] + 0.1
+    assert m.mass_kg > f.mass_kg
+
+
+def test_build_path_is_continuous():
+    assert build_sliders(0.0) == (0.5, 0.5)
+    assert build_sliders(1.0) == (0.0, 1.0)
+    assert build_sliders(-1.0) == (0.5, 0.0)
+    assert np.allclose(build_sliders(1e-9), build_sliders(-1e-9), atol=1e-8)
+
+
+def test_result_keeps_helpers_shaped(morpher, body_model):
+    res = morpher.solve({"hips": 1.05})
+    assert res.verts.shape == (19158, 3)
+    assert np.isfinite(res.verts).all()
+    tights = body_model.group("helper-tights")
+    assert np.abs(res.verts[tights] - body_model.default_verts("female")[tights]).max() > 0.005
+    assert set(res.channels) == {CHANNELS[g] for g in GIRTHS} | set(SECONDARY)

@@ -1,0 +1,244 @@
+"""Body measurements, each with its definition. Values are in metres (the CLI prints cm).
+
+Definitions (``definition=``), after ``shared/reference/MEASUREMENTS.md``:
+
+``iso`` (default) - tailoring tape measures, ISO 8559-1 style
+    * height: stature, max Y - min Y of the 13,380 body vertices.
+    * bust: the largest torso tape girth over horizontal planes within +-3 cm of
+      the mean height of the MakeHuman bust ruler's vertices.
+    * underbust: the smallest torso tape girth within +-2 cm of the mean height
+      of the underbust ruler's vertices.
+    * waist: the smallest torso tape girth between the mean heights of the hips
+      ruler and of the underbust ruler (the natural, narrowest waist).
+    * hips: the largest torso tape girth within +-4 cm of the mean height of the
+      hips ruler's vertices.
+    * neck, upper-arm, thigh, calf: the MakeHuman rulers (no plane-based
+      definition is specified for them yet).
+    A *tape girth* is the perimeter of the convex hull of the horizontal
+    cross-section's torso loop (a tape bridges hollows; arm loops cut by the same
+    plane are ignored). Planes are searched at 1 mm steps, band ends included.
+
+``makehuman`` - MakeHuman's Measure plugin rulers
+    Each value is the length of the polyline through a fixed list of body
+    vertices (``data/rulers.json``): bust = bust-circ, waist = waist-circ ...,
+    and all 20 rulers are reported under their MakeHuman keys. Height as above.
+
+``spline`` - the seed's feature profile curve
+    As ``iso`` but each girth is the length of natural cubic splines through the
+    front and back halves of the torso loop (it follows hollows instead of
+    bridging them).
+
+``mass_kg`` is reported with every definition: the body mesh's enclosed
+volume times ``DENSITY``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .model import N_BODY, BodyModel
+
+DEFINITIONS = ("iso", "makehuman", "spline")
+#: kg/m^3 used for body mass from volume (whole-body density of adults is about 985-1,000 kg/m^3).
+DENSITY = 985.0
+#: the measurements a user can ask for, in report order.
+NAMES = ("height", "bust", "underbust", "waist", "hips", "neck", "upper-arm", "thigh", "calf")
+#: measurement -> MakeHuman ruler key
+RULER_OF = {"bust": "bust-circ", "underbust": "underbust-circ", "waist": "waist-circ", "hips": "hips-circ",
+            "neck": "neck-circ", "upper-arm": "upperarm-circ", "thigh": "thigh-circ", "calf": "calf-circ"}
+#: plane-based torso girths: (ruler whose mean height anchors the band, band below, band above, max or min)
+_BANDS = {
+    "bust": ("bust-circ", 0.03, 0.03, "max"),
+    "underbust": ("underbust-circ", 0.02, 0.02, "min"),
+    "hips": ("hips-circ", 0.04, 0.04, "max"),
+}
+PLANE_STEP = 0.001  # m
+_PLANE_GIRTHS = ("bust", "underbust", "waist", "hips")
+
+
+@dataclass
+class Measurement:
+    """Measured values (m, mass in kg) and the planes (y, m) where the tape girths were taken."""
+
+    definition: str
+    values: dict
+    planes: dict = field(default_factory=dict)
+    mass_kg: float = float("nan")
+    #: name -> near-extremal planes found by the band search, as fractions of the band (0 = lo, 1 = hi)
+    candidates: dict = field(default_factory=dict)
+    #: name -> the plane used, as a fraction of its band
+    fractions: dict = field(default_factory=dict)
+
+    def cm(self) -> dict:
+        """Values in centimetres, rounded to 0.01 mm."""
+        return {k: round(v * 100.0, 3) for k, v in self.values.items()}
+
+
+def band_limits(verts: np.ndarray, rulers: dict) -> dict:
+    """(lo, hi, 'max'|'min') of every plane-based girth for a body, in metres."""
+    mean_y = {k: float(verts[rulers[k]["vertex_indices"], 1].mean()) for k in ("bust-circ", "underbust-circ", "hips-circ")}
+    out = {name: (mean_y[r] - below, mean_y[r] + above, mode) for name, (r, below, above, mode) in _BANDS.items()}
+    lo, hi = sorted((mean_y["hips-circ"], mean_y["underbust-circ"]))
+    out["waist"] = (lo, hi, "min")
+    return out
+
+
+def _band_anchors(name: str, fraction: float):
+    """(ruler, d plane / d ruler-mean-height) pairs: how a girth's plane moves with its band."""
+    if name == "waist":  # from the hips ruler's mean height (0) to the underbust ruler's (1)
+        return (("hips-circ", 1.0 - fraction), ("underbust-circ", fraction))
+    return ((_BANDS[name][0], 1.0),)
+
+
+def band_mode(name: str) -> str:
+    """'max' or 'min': whether a plane-based girth is the largest or smallest over its band."""
+    return "min" if name == "waist" else _BANDS[name][3]
+
+
+def ruler_length(verts: np.ndarray, indices) -> float:
+    """Length (m) of the polyline through ``verts[indices]`` in order (MakeHuman's Ruler.getMeasure)."""
+    p = verts[np.asarray(indices)]
+    return float(np.sqrt(((p[1:] - p[:-1]) ** 2).sum(axis=1)).sum())
+
+
+def stature(verts: np.ndarray) -> float:
+    """Max Y - min Y of the body vertices (m)."""
+    y = verts[:N_BODY, 1]
+    return float(y.max() - y.min())
+
+
+def enclosed_volume(verts: np.ndarray, tris: np.ndarray) -> float:
+    """Volume (m^3) enclosed by a closed, outward-oriented triangle mesh (divergence theorem)."""
+    a, b, c = (verts[tris[:, k]] for k in range(3))
+    o = verts[tris[:, 0]].mean(axis=0)  # a nearby origin keeps round-off small
+    return float(np.einsum("ij,ij->i", a - o, np.cross(b - o, c - o)).sum() / 6.0)
+
+
+class Measurer:
+    """Measures bodies with hm08 body topology. Build once, measure many bodies.
+
+    Parameters
+    ----------
+    model : BodyModel, optional
+        Supplies the topology and ruler lists; loaded if not given.
+    """
+
+    def __init__(self, model: BodyModel | None = None):
+        from ..section import MeshSections  # imports numba: only here, never on the --help path
+
+        self.model = model or BodyModel.load()
+        self.rulers = self.model.rulers
+        self.tris = self.model.body_tris
+        self.sections = MeshSections(self.tris, N_BODY)
+
+    def _girth_method(self, definition):
+        return "spline" if definition == "spline" else "hull"
+
+    def torso_girth(self, verts, y, definition="iso") -> float:
+        """Tape girth (m) of the torso loop at height ``y`` (m)."""
+        return float(self.sections.girth(np.asarray(verts)[:N_BODY], y, method=self._girth_method(definition)))
+
+    def scan_girth(self, verts, lo, hi, mode, definition="iso"):
+        """Largest (``mode='max'``) or smallest torso girth over ``[lo, hi]``.
+
+        Planes are ``ceil((hi - lo) / 1 mm) + 1`` evenly spaced, both band ends
+        included. Returns (girth, y, candidates): ``candidates`` are the heights
+        of the local extrema within 5 mm of the best, where the extremum may jump
+        to when the body changes a little (the morph solver watches them all).
+        """
+        ys, g = self.sections.scan(verts, lo, hi, step=PLANE_STEP, method=self._girth_method(definition))
+        ok = np.isfinite(g)
+        if not ok.any():
+            return float("nan"), float("nan"), np.array([np.nan])
+        sign = 1.0 if mode == "max" else -1.0
+        f = np.where(ok, sign * g, -np.inf)
+        i = int(np.argmax(f))
+        left = np.concatenate([[-np.inf], f[:-1]])
+        right = np.concatenate([f[1:], [-np.inf]])
+        local = np.flatnonzero((f >= left) & (f >= right) & (f >= f[i] - 0.005))
+        order = np.argsort(-f[local])[:3]
+        return float(g[i]), float(ys[i]), ys[local[order]]
+
+    def gradient(self, verts, name, definition="iso", fraction=None):
+        """Sparse gradient of one measurement w.r.t. the vertices: (idx (k,), d/dv (k, 3)).
+
+        A tape girth is differentiated at the plane a ``fraction`` of the way up
+        its band, including the band's own motion with its ruler vertices
+        (``dg/dy`` by a central difference). The ``spline`` girth has no
+        analytic gradient here (returns None).
+        """
+        from .gradients import girth_gradient, ruler_gradient, stature_gradient
+
+        verts = np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64)
+        if name == "height":
+            return stature_gradient(verts, N_BODY)
+        if definition == "makehuman" or name not in _PLANE_GIRTHS:
+            return ruler_gradient(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
+        if definition == "spline":
+            return None
+        lo, hi, _ = band_limits(verts, self.rulers)[name]
+        y = lo + fraction * (hi - lo)
+        idx, grad = girth_gradient(self.sections, verts, y)
+        eps = 2e-4
+        dg_dy = (self.torso_girth(verts, y + eps) - self.torso_girth(verts, y - eps)) / (2 * eps)
+        parts_i, parts_g = [idx], [grad]
+        for ruler, weight in _band_anchors(name, fraction):
+            r_idx = np.asarray(self.rulers[ruler]["vertex_indices"], dtype=np.int64)
+            g = np.zeros((r_idx.size, 3))
+            g[:, 1] = dg_dy * weight / r_idx.size
+            parts_i.append(r_idx)
+            parts_g.append(g)
+        return np.concatenate(parts_i), np.concatenate(parts_g)
+
+    def mass(self, verts) -> float:
+        """Body mass (kg): enclosed volume of the body mesh times ``DENSITY``."""
+        return enclosed_volume(verts, self.tris) * DENSITY
+
+    def measure(self, verts, definition="iso", planes=None, names=NAMES, mass=True) -> Measurement:
+        """Measure a body.
+
+        Parameters
+        ----------
+        verts : (n >= 13380, 3) float64, m
+            Body vertices in hm08 order, Y up.
+        definition : {'iso', 'makehuman', 'spline'}
+        planes : dict, optional
+            name -> fraction or array of fractions of the band (0 = its lower
+            end, 1 = its upper end): take those girths at these planes (the
+            extremum over them) instead of searching their bands (the morph
+            solver's inner loop). Fractions keep a plane in the band while the
+            band moves with the body.
+        names : iterable of str
+            Which of ``NAMES`` to measure (``makehuman`` always adds all rulers).
+        mass : bool
+            Also compute ``mass_kg`` (NaN otherwise).
+        """
+        if definition not in DEFINITIONS:
+            raise ValueError(f"unknown definition {definition!r}; choose from {', '.join(DEFINITIONS)}")
+        verts = np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64)
+        values, used, cand, frac = {}, {}, {}, {}
+        bands = None
+        for name in names:
+            if name == "height":
+                values[name] = stature(verts)
+            elif definition == "makehuman" or name not in _PLANE_GIRTHS:
+                values[name] = ruler_length(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
+            else:
+                if bands is None:
+                    bands = band_limits(verts, self.rulers)
+                lo, hi, mode = bands[name]
+                if planes is not None and name in planes:
+                    # fixed planes, given as fractions of the band: they move with the band
+                    ts = np.atleast_1d(planes[name])
+                    g = [self.torso_girth(verts, lo + t * (hi - lo), definition) for t in ts]
+                    k = int(np.argmax(g) if mode == "max" else np.argmin(g))
+                    values[name], used[name], frac[name] = g[k], lo + ts[k] * (hi - lo), float(ts[k])
+                else:
+                    values[name], used[name], ys = self.scan_girth(verts, lo, hi, mode, definition)
+                    cand[name] = (ys - lo) / (hi - lo)
+                    frac[name] = (used[name] - lo) / (hi - lo)
+        if definition == "makehuman" and planes is None:
+            for key, r in self.rulers.items():
+                values.setdefault(key, ruler_length(verts, r["vertex_indices"]))
+        return Measurement(definition, values, used, self.mass(verts) if mass else float("nan"), cand, frac)
