@@ -1,0 +1,147 @@
+"""`vfit`, `vfit morph` and `vfit measure` through click's CliRunner: good runs and every class of bad input."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from vfit_cli.main import cli
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
+
+
+@pytest.mark.parametrize("args", [["--help"], ["morph", "--help"], ["measure", "--help"]])
+def test_help(args):
+    r = run(*args)
+    assert r.exit_code == 0 and "Usage" in r.output
+
+
+def test_help_does_not_import_numba():
+    code = ("import sys\nfrom click.testing import CliRunner\nfrom vfit_cli.main import cli\n"
+            "for a in (['--help'], ['morph', '--help'], ['measure', '--help']):\n"
+            "    assert CliRunner().invoke(cli, a).exit_code == 0\n"
+            "print('numba' in sys.modules, 'scipy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "False"]
+
+
+def test_morph_then_measure(tmp_path):
+    body = tmp_path / "b.obj"
+    report = tmp_path / "b.json"
+    r = run("morph", "--waist", 72, "--bust", 90, "--hips", 98, "--height", 168, "-o", body, "--json", report)
+    assert r.exit_code == 0, r.output
+    assert f"wrote {body}" in r.output and "waist (cm)" in r.output
+    rep = json.loads(report.read_text())
+    assert rep["units"]["length"] == "cm" and rep["definition"] == "iso"
+    assert all(abs(e) <= 1.0 for e in rep["error_mm"].values())
+    lines = body.read_text().splitlines()
+    assert sum(1 for ln in lines if ln.startswith("v ")) == 13380
+    assert sum(1 for ln in lines if ln.startswith("vt ")) > 0
+    assert sum(1 for ln in lines if ln.startswith("f ")) == 13378
+    r = run("measure", body, "--json", tmp_path / "m.json")
+    assert r.exit_code == 0, r.output
+    got = json.loads((tmp_path / "m.json").read_text())["values"]
+    for k, want in (("waist", 72), ("bust", 90), ("hips", 98), ("height", 168)):
+        assert abs(got[k] - want) <= 0.1, k
+
+
+def test_morph_default_output_and_ply(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    r = run("morph", "--waist", 68)
+    assert r.exit_code == 0 and (tmp_path / "body.obj").exists() and "wrote body.obj" in r.output
+    r = run("morph", "--gender", "male", "-o", "m.ply", "--quiet")
+    assert r.exit_code == 0 and (tmp_path / "m.ply").read_bytes().startswith(b"ply")
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--waist", "-5"], "must be positive"),
+    (["--waist", "nan"], "not a finite number"),
+    (["--waist", "abc"], "not a number"),
+    (["--hips", "1e6"], "absurd"),
+    (["--gender", "robot"], "not female, male"),
+    (["--frobnicate", "3"], "No such option"),
+    (["--definition", "tailor"], "Invalid value"),
+])
+def test_morph_usage_errors(tmp_path, args, needle):
+    out = tmp_path / "x.obj"
+    r = CliRunner().invoke(cli, ["morph", *args, "-o", str(out)])
+    assert r.exit_code == 2 and needle in r.output
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--waist", "20"], "reachable"),
+    (["--bust", "70", "--underbust", "90"], "cannot be met together"),
+    (["--weight", "400", "--height", "150"], "reachable"),
+])
+def test_morph_unreachable(tmp_path, args, needle):
+    out = tmp_path / "x.obj"
+    r = CliRunner().invoke(cli, ["morph", *args, "-o", str(out), "--json", str(tmp_path / "x.json")])
+    assert r.exit_code == 2 and needle in r.output and "Traceback" not in r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("path", ["missing/dir/b.obj", "b.stl", "."])
+def test_morph_unwritable_output(tmp_path, monkeypatch, path):
+    monkeypatch.chdir(tmp_path)
+    r = CliRunner().invoke(cli, ["morph", "--waist", "70", "-o", path])
+    assert r.exit_code == 2 and ("cannot write" in r.output or "is a directory" in r.output)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_measure_makehuman_units(tmp_path, body_model):
+    """A MakeHuman-style export in decimetres is read as dm and measures like the metre original."""
+    from vfit_engine.body.bodyio import write_body
+
+    verts = body_model.default_verts("female")
+    write_body(tmp_path / "m.obj", body_model, verts)
+    write_body(tmp_path / "dm.obj", body_model, verts * 10.0)
+    a = run("measure", tmp_path / "m.obj", "--definition", "makehuman", "--json", tmp_path / "a.json")
+    b = run("measure", tmp_path / "dm.obj", "--definition", "makehuman", "--json", tmp_path / "b.json")
+    assert a.exit_code == b.exit_code == 0 and "read as dm" in b.output
+    va = json.loads((tmp_path / "a.json").read_text())["values"]
+    vb = json.loads((tmp_path / "b.json").read_text())["values"]
+    assert all(abs(va[k] - vb[k]) < 1e-3 for k in va)
+    r = run("measure", tmp_path / "dm.obj", "--units", "m")
+    assert r.exit_code == 0  # honoured as asked; absurd values, but the user chose
+    assert "1665" in r.output or "1589" in r.output
+
+
+def test_measure_bad_inputs(tmp_path):
+    import trimesh
+
+    r = CliRunner().invoke(cli, ["measure", str(tmp_path / "none.obj")])
+    assert r.exit_code == 2 and "no such file" in r.output
+    garbled = tmp_path / "g.obj"
+    garbled.write_text("v 1 2 x\nf 1 2 3\n")
+    r = CliRunner().invoke(cli, ["measure", str(garbled)])
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    cube = tmp_path / "cube.obj"
+    trimesh.creation.box().export(cube)
+    r = CliRunner().invoke(cli, ["measure", str(cube)])
+    assert r.exit_code == 2 and "hm08" in r.output
+    r = CliRunner().invoke(cli, ["measure", str(cube), "--units", "km"])
+    assert r.exit_code == 2
+
+
+def test_measure_rejects_nan_and_shuffled_topology(tmp_path, body_model):
+    from vfit_engine.body.bodyio import write_body
+    from vfit_engine.io.mesh import mesh_from_faces, write_mesh
+
+    verts = body_model.default_verts("female")
+    write_body(tmp_path / "ok.obj", body_model, verts)
+    lines = (tmp_path / "ok.obj").read_text().splitlines()
+    first_v = next(i for i, ln in enumerate(lines) if ln.startswith("v "))
+    lines[first_v + 5] = "v 0.1 nan 0.2"
+    (tmp_path / "nan.obj").write_text("\n".join(lines) + "\n")
+    r = CliRunner().invoke(cli, ["measure", str(tmp_path / "nan.obj")])
+    assert r.exit_code == 2 and "NaN" in r.output
+    perm = np.random.default_rng(0).permutation(13380)
+    write_mesh(tmp_path / "shuffled.obj", mesh_from_faces(verts[:13380], perm[body_model.body_quads]))
+    r = CliRunner().invoke(cli, ["measure", str(tmp_path / "shuffled.obj")])
+    assert r.exit_code == 2
