@@ -137,7 +137,7 @@ class Morpher:
         w = np.zeros(len(index))
         for n, x in tw.items():
             w[index[n]] = x
-        return self.model.base_verts[:N_BODY].ravel() + w @ stack
+        return self.model.base_verts[:N_BODY].ravel() + stack.T.dot(w)
 
     def _body(self, macro: Macro, s: np.ndarray) -> np.ndarray:
         """Body of signed channel weights ``s`` (> 0 picks -incr, < 0 picks -decr)."""
@@ -147,7 +147,9 @@ class Morpher:
         """Body of separate, non-negative -incr and -decr weights: linear and smooth in both."""
         if self._last_macro[0] != macro:  # the solver varies channels far more often than sliders
             self._last_macro = (macro, self._macro_body(macro))
-        return (self._last_macro[1] + incr @ self._incr + decr @ self._decr).reshape(N_BODY, 3)
+        # A.T.dot(x) rather than x @ A: the latter goes through a multithreaded BLAS path
+        # that costs 50x more on a busy machine (3.4 ms against 0.04 ms measured)
+        return (self._last_macro[1] + self._incr.T.dot(incr) + self._decr.T.dot(decr)).reshape(N_BODY, 3)
 
     # ----------------------------------------------------------------- solving
     def solve(self, targets: dict, gender="female", definition="iso", weight_kg=None) -> MorphResult:
@@ -245,7 +247,7 @@ class Morpher:
                 r, meas = residual(x, None)  # full band search at the new shape
                 for k, ys in meas.candidates.items():
                     new = [t for t in ys if np.min(np.abs(seen[k] - t)) > 5e-3]
-                    seen[k] = np.concatenate([seen[k], new])[-6:]
+                    seen[k] = np.concatenate([seen[k], new])[-4:]
                 if np.all(np.abs(r[hard]) * _MM < TOLERANCE_M * 0.25):
                     break
             split = (x[:n_ch], x[n_ch:2 * n_ch])
