@@ -7,6 +7,7 @@ time (numpy, scipy and numba are imported inside the callbacks), so ``vfit
 import click
 
 from . import measure, morph
+from . import drape
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -22,6 +23,7 @@ def cli():
 
 cli.add_command(morph.morph)
 cli.add_command(measure.measure)
+cli.add_command(drape.drape)
 
 
 if __name__ == "__main__":  # pragma: no cover

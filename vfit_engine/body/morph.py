@@ -355,7 +355,7 @@ def _gauss_newton(fun, x, lo, hi, reg, planes, x_ref=None, hard=None, jac=None, 
     and each step the bounded linear least-squares problem (``lsq_linear``)
     within a box of half-width ``delta`` that grows after good steps and shrinks
     after bad ones (a bad step first refreshes a stale Jacobian). Stops when the
-    objective stalls (relative decrease < 1e-3) with the ``hard`` residuals
+    objective stalls (relative decrease < 1e-2) with the ``hard`` residuals
     (all by default) under 0.01 (in their units, here 0.01 mm). With ``jac(x,
     planes) -> J`` the exact Jacobian is used at every iterate instead.
     """
@@ -384,7 +384,7 @@ def _gauss_newton(fun, x, lo, hi, reg, planes, x_ref=None, hard=None, jac=None, 
     J, fresh = jacobian(x, r), True
     f = objective(r, x)
     A_reg = np.diag(reg)
-    delta = 0.25
+    delta = 1.0
     for _ in range(max_iter):
         A = np.vstack([J, A_reg])
         rhs = -np.concatenate([r, reg * (x - x_ref)])
@@ -415,7 +415,7 @@ def _gauss_newton(fun, x, lo, hi, reg, planes, x_ref=None, hard=None, jac=None, 
             fresh = False
         if rho > 0.75 and np.max(np.abs(dx)) > 0.5 * delta:
             delta = min(2.0 * delta, 1.0)
-        stalled = f - f_new < 1e-3 * f
+        stalled = f - f_new < 1e-2 * f
         x, r, f = x_new, r_new, f_new
         if np.all(np.abs(r[hard]) < 0.01) and (stalled or f < 1e-10):
             break

