@@ -167,6 +167,19 @@ class MeshSections:
         _, g = self.scan(verts, y, y, method=method, x0=x0)
         return float(g[0])
 
+    def girths(self, verts, ys, method="hull", x0=0.0):
+        """Torso girths at arbitrary heights ``ys`` (m) in one kernel call (m; NaN where a plane
+        misses the mesh). ``verts`` must be a C-contiguous float64 (n_verts, 3) array: this is the
+        fast path for callers that validated it once (the morph solver's inner loop)."""
+        ys = np.ascontiguousarray(ys, dtype=np.float64).ravel()
+        if verts.dtype != np.float64 or not verts.flags.c_contiguous or verts.shape != (self.n_verts, 3):
+            verts = self._verts(verts)
+        out = np.empty(ys.size, dtype=np.float64)
+        _ks.scan_girths(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, ys, self._method(method),
+                        SPLINE_SAMPLES, float(x0), self._cand, self._visited, self._cut, self._pts,
+                        self._loop_start, self._loop_closed, self._order, self._hull, self._work, out)
+        return out
+
     def scan(self, verts, y_lo, y_hi, step=0.001, method="hull", x0=0.0):
         """Torso girths on evenly spaced planes from ``y_lo`` to ``y_hi`` (both included).
 

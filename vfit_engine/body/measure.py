@@ -181,7 +181,8 @@ class Measurer:
         y = lo + fraction * (hi - lo)
         idx, grad = girth_gradient(self.sections, verts, y)
         eps = 2e-4
-        dg_dy = (self.torso_girth(verts, y + eps) - self.torso_girth(verts, y - eps)) / (2 * eps)
+        g_lo, g_hi = self.sections.girths(verts, np.array([y - eps, y + eps]))
+        dg_dy = (g_hi - g_lo) / (2 * eps)
         parts_i, parts_g = [idx], [grad]
         for ruler, weight in _band_anchors(name, fraction):
             r_idx = np.asarray(self.rulers[ruler]["vertex_indices"], dtype=np.int64)
@@ -231,8 +232,8 @@ class Measurer:
                 if planes is not None and name in planes:
                     # fixed planes, given as fractions of the band: they move with the band
                     ts = np.atleast_1d(planes[name])
-                    g = [self.torso_girth(verts, lo + t * (hi - lo), definition) for t in ts]
-                    k = int(np.argmax(g) if mode == "max" else np.argmin(g))
+                    g = self.sections.girths(verts, lo + ts * (hi - lo), method=self._girth_method(definition))
+                    k = int(np.nanargmax(g) if mode == "max" else np.nanargmin(g))
                     values[name], used[name], frac[name] = g[k], lo + ts[k] * (hi - lo), float(ts[k])
                 else:
                     values[name], used[name], ys = self.scan_girth(verts, lo, hi, mode, definition)

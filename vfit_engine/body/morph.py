@@ -23,10 +23,13 @@ bounded nonlinear least squares:
 
 Tape girths are maxima/minima over a band of planes. By the envelope theorem
 their derivative is the derivative at the extremal plane, so the inner solve
-keeps each girth's plane fixed and the outer loop re-searches the bands until
-the full measurement meets every target. The inner solve is Gauss-Newton with
-Broyden updates of a finite-difference Jacobian and bounded linear steps
-(``scipy.optimize.lsq_linear``).
+keeps each girth's planes fixed (as fractions of its band, so they move with
+the band; every near-extremal plane seen so far, so the solve cannot cycle
+between two valleys) and the outer loop re-searches the bands until the full
+measurement meets every target. The inner solve is a trust-region
+Gauss-Newton with bounded linear steps (``scipy.optimize.lsq_linear``) and an
+exact Jacobian: the body is linear in its channel weights, so
+``dg/dx_j = grad_v g . D_j`` with the gradients of ``gradients.py``.
 """
 from __future__ import annotations
 
@@ -201,7 +204,7 @@ class Morpher:
                                  np.ones(len(free)), np.zeros(len(free)), None)
             h = p[free.index("height")] if "height" in free else 0.5
             b = p[free.index("weight")] if "weight" in free else 0.0
-        base = m.measure(self._body(self.macro(g, h, b), zero), definition)
+        base = start if not free else m.measure(self._body(self.macro(g, h, b), zero), definition, mass=False)
         s = zero
         split = (zero, zero)
 
@@ -248,7 +251,7 @@ class Morpher:
                 for k, ys in meas.candidates.items():
                     new = [t for t in ys if np.min(np.abs(seen[k] - t)) > 5e-3]
                     seen[k] = np.concatenate([seen[k], new])[-4:]
-                if np.all(np.abs(r[hard]) * _MM < TOLERANCE_M * 0.25):
+                if np.all(np.abs(r[hard]) * _MM < TOLERANCE_M * 0.5):
                     break
             split = (x[:n_ch], x[n_ch:2 * n_ch])
             s = split[0] - split[1]
