@@ -55,7 +55,7 @@ def main():
     weight_ms = _median_ms(lambda: morpher.solve({"height": 1.75}, weight_kg=70.0), args.repeat)
 
     cli_s = float("nan")
-    exe = shutil.which("vfit")
+    exe = shutil.which("vfit", path=str(Path(sys.executable).parent)) or shutil.which("vfit")
     if exe:
         with tempfile.TemporaryDirectory() as tmp:
             cmd = [exe, "morph", "--waist", "72", "--bust", "90", "--hips", "98", "--height", "168",

@@ -266,8 +266,17 @@ class Morpher:
                 weights[name + "-incr"] = float(up)
             if down > 0:
                 weights[name + "-decr"] = float(down)
+        # the body vertices are exactly the array the last full measurement was taken on
+        # (the sparse sum gives the helpers; it differs from the dense one by round-off)
+        if any(k in GIRTHS for k in targets):
+            body, result = self._body_split(macro, *split), meas
+        else:
+            body, result = self._body(macro, zero), base
         verts = self.model.shape(weights)
-        result = m.measure(verts, definition)
+        verts[:N_BODY] = body
+        result.values = {**{k: result.values[k] for k in NAMES}, **result.values}
+        if not np.isfinite(result.mass_kg):
+            result.mass_kg = m.mass(body)
         out = MorphResult(verts, macro, float(b), channels, result, dict(targets), weight_kg, start, iterations,
                           weights)
         self._check(out, definition)
