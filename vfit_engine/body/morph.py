@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .measure import NAMES, Measurement, Measurer
+from .measure import _PLANE_GIRTHS, NAMES, Measurement, Measurer
 from .model import N_BODY, BodyModel, Macro, gender_value
 
 #: girth -> its primary target (``-incr``/``-decr`` appended)
@@ -204,7 +204,14 @@ class Morpher:
                                  np.ones(len(free)), np.zeros(len(free)), None)
             h = p[free.index("height")] if "height" in free else 0.5
             b = p[free.index("weight")] if "weight" in free else 0.0
-        base = start if not free else m.measure(self._body(self.macro(g, h, b), zero), definition, mass=False)
+        if free:
+            # only the girths to hold need their bands searched on the semantic body; targeted
+            # girths just need starting planes, and the start body's (band fractions) serve
+            hold = [k for k in NAMES if k not in targets or k not in _PLANE_GIRTHS]
+            base = m.measure(self._body(self.macro(g, h, b), zero), definition, names=hold, mass=False)
+            base.candidates = {**start.candidates, **base.candidates}
+        else:
+            base = start
         s = zero
         split = (zero, zero)
 
@@ -213,7 +220,7 @@ class Morpher:
         # where one signed weight would put a kink exactly at the starting point.
         if any(k in GIRTHS for k in targets):
             keys = GIRTHS + ("height",)
-            goal = np.array([targets.get(k, base.values[k]) for k in keys])
+            goal = np.array([targets[k] if k in targets else base.values[k] for k in keys])
             wres = np.array([1.0 if k in targets else HOLD_WEIGHT for k in keys])
             with_mass = weight_kg is not None
             x = np.zeros(2 * n_ch + int(with_mass))
@@ -367,8 +374,9 @@ def _gauss_newton(fun, x, lo, hi, reg, planes, x_ref=None, hard=None, jac=None, 
     and each step the bounded linear least-squares problem (``lsq_linear``)
     within a box of half-width ``delta`` that grows after good steps and shrinks
     after bad ones (a bad step first refreshes a stale Jacobian). Stops when the
-    objective stalls (relative decrease < 1e-2) with the ``hard`` residuals
-    (all by default) under 0.01 (in their units, here 0.01 mm). With ``jac(x,
+    objective stalls (relative decrease < 1e-2) or is tiny, with the ``hard``
+    residuals (all by default) under 0.03 (in their units, here 0.03 mm; the
+    caller verifies its own tolerance afterwards). With ``jac(x,
     planes) -> J`` the exact Jacobian is used at every iterate instead.
     """
     from scipy.optimize import lsq_linear
@@ -429,6 +437,6 @@ def _gauss_newton(fun, x, lo, hi, reg, planes, x_ref=None, hard=None, jac=None, 
             delta = min(2.0 * delta, 1.0)
         stalled = f - f_new < 1e-2 * f
         x, r, f = x_new, r_new, f_new
-        if np.all(np.abs(r[hard]) < 0.01) and (stalled or f < 1e-10):
+        if np.all(np.abs(r[hard]) < 0.03) and (stalled or f < 1e-6):
             break
     return x, r
