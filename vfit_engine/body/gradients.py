@@ -60,10 +60,11 @@ def girth_gradient(sections, verts, h, x0=0.0):
     dq = d_in - d_out  # (m, 2): dP/d(x, z) of each hull point
 
     # match every hull point to the mesh edge it was cut from
-    e = sections.edges
-    ya, yb = verts[e[:, 0], 1], verts[e[:, 1], 1]
-    cut = np.flatnonzero((np.minimum(ya, yb) < h) & (h <= np.maximum(ya, yb)))
-    a, b = e[cut, 0], e[cut, 1]
+    from ..kernels.section import select_band_edges
+
+    n_cut = select_band_edges(verts, sections.edges, h, h, sections._cand)  # the edges y = h cuts
+    cut = sections._cand[:n_cut]
+    a, b = sections.edges[cut, 0], sections.edges[cut, 1]
     s = (h - verts[a, 1]) / (verts[b, 1] - verts[a, 1])
     px = verts[a, 0] + s * (verts[b, 0] - verts[a, 0])
     pz = verts[a, 2] + s * (verts[b, 2] - verts[a, 2])

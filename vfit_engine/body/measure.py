@@ -180,7 +180,7 @@ class Measurer:
         lo, hi, _ = band_limits(verts, self.rulers)[name]
         y = lo + fraction * (hi - lo)
         idx, grad = girth_gradient(self.sections, verts, y)
-        eps = 2e-4
+        eps = 1e-6  # local: g(y) has kinks where the plane passes vertex rows, often within 10 um
         g_lo, g_hi = self.sections.girths(verts, np.array([y - eps, y + eps]))
         dg_dy = (g_hi - g_lo) / (2 * eps)
         parts_i, parts_g = [idx], [grad]
