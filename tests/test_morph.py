@@ -111,3 +111,12 @@ def test_result_keeps_helpers_shaped(morpher, body_model):
     tights = body_model.group("helper-tights")
     assert np.abs(res.verts[tights] - body_model.default_verts("female")[tights]).max() > 0.005
     assert set(res.channels) == {CHANNELS[g] for g in GIRTHS} | set(SECONDARY)
+
+
+@pytest.mark.parametrize("gender,bust,waist,hips", [
+    ("female", 78, 62, 86), ("female", 113, 95, 119),   # EN 13402 women's XS and XL
+    ("male", 82, 70, 84), ("male", 114, 102, 112),      # men's XS and XL
+])
+def test_letter_size_extremes(morpher, gender, bust, waist, hips):
+    targets = {"bust": bust / 100, "waist": waist / 100, "hips": hips / 100}
+    _assert_met(morpher.solve(targets, gender=gender), targets)
