@@ -119,14 +119,6 @@ class Morpher:
         muscle, weight = build_sliders(build)
         return Macro(gender=gender, muscle=muscle, weight=weight, height=float(height))
 
-    def target_weights(self, macro: Macro, channels: dict) -> dict:
-        """All target weights of a body: the macro's plus the signed channels'."""
-        w = dict(macro.target_weights())
-        for name, s in channels.items():
-            if s:
-                w[name + ("-incr" if s > 0 else "-decr")] = abs(float(s))
-        return w
-
     def _macro_body(self, macro: Macro) -> np.ndarray:
         """Flattened body vertices of a macro setting, from a per-gender dense target stack."""
         tw = macro.target_weights()
@@ -194,7 +186,8 @@ class Morpher:
                 v = self._body(self.macro(g, hh, bb), zero)
                 r = []
                 if "height" in free:
-                    r.append((m.measure(v, definition, names=("height",)).values["height"] - targets["height"]) / _MM)
+                    r.append((m.measure(v, definition, names=("height",), mass=False).values["height"]
+                              - targets["height"]) / _MM)
                 if "weight" in free:
                     r.append((m.mass(v) / weight_kg - 1.0) / _MASS_UNIT)
                 return np.array(r), None
@@ -204,7 +197,6 @@ class Morpher:
                                  np.ones(len(free)), np.zeros(len(free)), None)
             h = p[free.index("height")] if "height" in free else 0.5
             b = p[free.index("weight")] if "weight" in free else 0.0
-        if free:
             # only the girths to hold need their bands searched on the semantic body; targeted
             # girths just need starting planes, and the start body's (band fractions) serve
             hold = [k for k in NAMES if k not in targets or k not in _PLANE_GIRTHS]
