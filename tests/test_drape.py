@@ -169,10 +169,19 @@ def test_auto_spheres_lie_inside_and_cover(body_model, female):
     assert np.percentile(gap, 95) < 0.01
 
 
+_ARMPIT = pytest.mark.xfail(reason="known gap: the female suits start ~1 cm inside the armpit crease and the cloth "
+                                   "there tears open (local strain > 10 %) when it is moved out", strict=True)
+_TIGHT = pytest.mark.xfail(reason="known gap: on the +5 cm body the pinned waistband must stretch > 10 % locally "
+                                  "(strain is measured against the garment as given)", strict=True)
+
+
 @needs_shared
-@pytest.mark.xfail(reason="known gap: local stretch > 10 % (armpits on the female suits) and jitter there keep "
-                          "the shared garments from meeting the strain bar and settling (see the drape report)", strict=False)
-@pytest.mark.parametrize("name, delta_cm", [("female_sportsuit01", 0.0), ("male_casualsuit02", 5.0)])
+@pytest.mark.parametrize("name, delta_cm", [
+    ("male_casualsuit02", -5.0),
+    ("male_casualsuit06", 0.0),
+    pytest.param("female_sportsuit01", 0.0, marks=_ARMPIT),
+    pytest.param("male_casualsuit02", 5.0, marks=_TIGHT),
+])
 def test_shared_garment_quality(morpher, name, delta_cm):
     """Acceptance: converged, finite, nothing deeper than 2 mm, <= 0.5 % inside, strain p99 <= 5 %, max <= 10 %."""
     from vfit_engine.body.model import N_BODY

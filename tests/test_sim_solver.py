@@ -250,3 +250,117 @@ def test_bad_inputs():
         Model.from_polygons(fv, fo, bad, "cotton")
     with pytest.raises(InputError):
         SphereCollider([[0, 0, 0]], [-1.0])
+
+
+# -- body-mesh contacts solved inside the strain-limit iterations (drape_step) ----------
+
+class _Contacts:
+    """A fused mesh-contact collider (the interface SolverVerlet looks for)."""
+
+    def __init__(self, mesh, max_push=1.0, reach=0.002, damping=0.0):
+        self.mesh, self.max_push, self.reach, self.damping = mesh, max_push, reach, damping
+
+    def contact_args(self):
+        m = self.mesh
+        return m._mesh_args, m.skin, self.reach, m.friction, self.max_push, self.damping
+
+
+def _box_body(skin=0.002, friction=0.5):
+    from vfit_engine.collide.body_mesh import MeshCollider
+
+    box = trimesh.creation.box(extents=(0.4, 0.2, 0.4))  # top face at y = 0.1
+    return MeshCollider(box.vertices, box.faces, skin=skin, friction=friction)
+
+
+def _one_particle_model(y, x=0.0):
+    pos = np.array([[x, y, 0.0], [x + 0.05, 1.0, 0.0]])  # a second, pinned particle far away
+    return Model.create(pos, np.zeros((0, 2), np.int64), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, np.int64),
+                        np.array([0.01, 0.01]), pin_indices=[1])
+
+
+def test_contact_particle_rests_on_the_surface_at_the_skin():
+    body = _box_body()
+    model = _one_particle_model(0.1 + body.skin)
+    solver = SolverVerlet(model, VerletSettings(substeps=4, air_damping=0.0), [_Contacts(body)])
+    state = solver.init_state(1 / 240)
+    for _ in range(60):
+        solver.step_frame(state, 1 / 60)
+    # gravity presses it in each substep, the contact puts it back: it stays at the skin, at rest
+    assert state.pos[0] == pytest.approx([0.0, 0.1 + body.skin, 0.0], abs=1e-12)
+    assert np.all(np.abs(state.pos[0] - state.pos_prev[0]) < 1e-12)
+    assert solver.contact_queries > 0
+
+
+def test_contact_push_is_limited_and_adds_no_velocity():
+    body = _box_body()
+    model = _one_particle_model(0.1 - 0.005)  # 5 mm inside the top face
+    solver = SolverVerlet(model, VerletSettings(substeps=1, gravity=(0.0, 0.0, 0.0), air_damping=0.0),
+                          [_Contacts(body, max_push=0.001)])
+    state = solver.init_state(0.001)
+    ys = []
+    for _ in range(10):
+        solver.step(state, 0.001)
+        ys.append(state.pos[0, 1])
+    # out by 1 mm per substep until at the skin, then still
+    expect = np.minimum(0.095 + 0.001 * np.arange(1, 11), 0.1 + body.skin)
+    assert np.allclose(ys, expect, atol=1e-12)
+    assert np.all(np.abs(state.pos[0] - state.pos_prev[0]) < 1e-12)
+
+
+def test_contact_friction_slows_a_sliding_particle():
+    # a particle sliding along the top face: Coulomb friction takes mu * g * dt off its speed per step
+    for mu, moving in ((0.0, True), (0.5, False)):
+        body = _box_body(friction=mu)
+        model = _one_particle_model(0.1 + body.skin, x=-0.1)
+        solver = SolverVerlet(model, VerletSettings(substeps=10, air_damping=0.0), [_Contacts(body)])
+        state = solver.init_state(1 / 600, vel=[0.5, 0.0, 0.0])
+        for _ in range(12):  # 0.2 s: mu g t = 0.98 m/s > 0.5 m/s
+            solver.step_frame(state, 1 / 60)
+        speed = np.linalg.norm(state.pos[0] - state.pos_prev[0]) * 600
+        assert (speed > 0.49) == moving
+        assert state.pos[0, 1] == pytest.approx(0.1 + body.skin, abs=1e-12)
+
+
+def test_sheet_on_sphere_jointly_limited_and_outside():
+    from vfit_engine.collide.body_mesh import MeshCollider
+
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.1)
+    body = MeshCollider(sphere.vertices, sphere.faces, skin=0.002, friction=0.3)
+    pos, fv, fo = grid_polygons(16, 16, 0.3, 0.3)
+    pos = np.ascontiguousarray(pos[:, [0, 2, 1]] - [0.15, -0.105, 0.15])  # horizontal, 5 mm above the top
+    model = Model.from_polygons(fv, fo, pos, "cotton")
+    st = VerletSettings(substeps=8, air_damping=1.0, strain_limit=0.02, bend_strain_limit=0.02,
+                        strain_limit_iterations=10, strain_limit_relaxation=1.5)
+    solver = SolverVerlet(model, st, [_Contacts(body, max_push=0.005)])
+    state = solver.init_state(1 / 480)
+    for _ in range(60):
+        solver.step_frame(state, 1 / 60)
+    d, _, _, _ = body.query(state.pos, max_out=1.0, max_in=1.0)
+    assert np.all(np.isfinite(state.pos)) and d.min() > 0.002 * (1 - 1e-6) - 1e-9
+    assert model.max_stretch(state.pos) < 0.05
+    assert state.pos[:, 1].min() < 0.0  # it draped over the sphere rather than staying flat
+
+
+# -- untangling --------------------------------------------------------------------------
+
+def test_untangle_moves_a_sheet_out_of_the_body_within_the_limit():
+    from vfit_engine.collide.body_mesh import MeshCollider
+    from vfit_engine.sim.untangle import untangle, vertex_normals
+
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.1)
+    body = MeshCollider(sphere.vertices, sphere.faces, skin=0.002)
+    garment = trimesh.creation.uv_sphere(radius=0.099, count=[24, 24])
+    fv, fo = _tri_polys(garment.faces)
+    pos = np.ascontiguousarray(garment.vertices)
+    # vertex normals of a sphere point outward (either winding is detected)
+    assert np.all(np.abs(np.einsum("ij,ij->i", vertex_normals(pos, fv, fo), pos / 0.099)) > 0.9)
+    springs = build_springs(fv, fo, pos)
+    sel = springs.type == STRUCTURAL
+    idx, rest = springs.indices[sel], springs.rest[sel]
+    out, info = untangle(pos, fv, fo, body, idx, rest * 1.05, skin=0.002)
+    d, _, _, _ = body.query(out, max_out=1.0, max_in=1.0)
+    assert info["inside_before"] == len(pos) and info["inside_after"] == 0
+    assert d.min() >= 0.002 * (1 - 1e-6)
+    strain = np.linalg.norm(out[idx[:, 1]] - out[idx[:, 0]], axis=1) / rest - 1
+    assert strain.max() < 0.05 + 1e-9
+    assert np.array_equal(pos, garment.vertices)  # the input is not modified

@@ -9,17 +9,25 @@ One drape (:func:`drape`) is:
    *reference* body (the body the garment was modelled on) as a triangle, barycentric
    coordinates and a normal offset; on the *current* body the same triangle gives its target,
    so pins follow a morphed body. Offsets are clamped to at least the collider skin so a pin
-   never sits inside the body. Pins move to their targets over the first ``ramp_frames``;
-3. frames of ``substeps`` Verlet substeps (:class:`~vfit_engine.sim.solver_verlet.SolverVerlet`)
-   with the body collider after every substep. Garments usually start partly inside the body
-   (up to ~13 mm on the default body, more on a wider one); the mesh collider moves those
-   particles out along the closest-point direction by at most ``max_push`` per substep, and
-   ``max_push`` ramps from ``push_start`` to ``push_end`` over ``ramp_frames``: a sudden
-   push of centimetres would stretch the springs around it and launch the cloth;
-4. after each frame: divergence (non-finite positions, or a particle faster than
+   never sits inside the body. Pins move to their targets over the first ``ramp_frames`` (at
+   once when the garment is untangled, step 3);
+3. the garment is untangled (:mod:`vfit_engine.sim.untangle`, mesh collider): garments usually
+   start partly inside the body (up to ~13 mm on the default body, more on a wider one), and
+   inside vertices are moved out along the sheet's own normal as a patch, under a looser strain
+   limit (``untangle_strain``), with no gravity; the pins are put on their targets first;
+4. frames of ``substeps`` Verlet substeps (:class:`~vfit_engine.sim.solver_verlet.SolverVerlet`)
+   whose body contacts are solved inside the strain-limit iterations
+   (:mod:`vfit_engine.kernels.drape_step`): what the untangling left inside comes out by at
+   most ``max_push`` per substep, and ``max_push`` ramps from ``push_start`` to ``push_end``
+   over ``ramp_frames``: a sudden push of centimetres would stretch the springs around it
+   and launch the cloth;
+5. after each frame: divergence (non-finite positions, or a particle faster than
    ``diverge_speed``) raises :class:`DrapeDiverged` at once, keeping the last good positions;
-   the cloth has settled when the fastest particle stays below ``settle_speed`` for
-   ``settle_frames`` consecutive frames after the ramp.
+   the cloth has settled when, for ``settle_frames`` consecutive frames after the ramp, the
+   99th percentile of the particles' mean speeds over the frame stays below ``settle_speed``
+   and the fastest particle's below ``settle_max_speed`` (a few particles in contact may
+   jitter in place by a fraction of a millimetre; ``settings['frame_speed']`` reports the
+   maximum and ``settings['frame_speed_quantile']`` the percentile at the last frame).
 
 :func:`drape_metrics` measures the result against the exact body mesh (penetration depth and
 count, structural strain); :mod:`vfit_engine.sim.report` turns a result into ``report.json``.
@@ -88,35 +96,59 @@ class DrapeSettings:
     ramp_frames : int
         Frames over which ``max_push`` ramps and pins move to their targets on the body.
     settle_speed : float, m/s
-        Fastest particle speed below which a frame counts as settled.
+        A frame counts as settled when the ``settle_quantile`` quantile of the particles' mean
+        speeds over the frame (``|x(frame) - x(frame - 1)| / frame time``) is below this ...
+    settle_quantile : float
+        ... (0.99: the 99th percentile) ...
+    settle_max_speed : float, m/s
+        ... and the fastest particle's mean speed over the frame is below this.
     settle_frames : int
         Consecutive settled frames that end the drape.
     diverge_speed : float, m/s
         A particle faster than this means the simulation has diverged.
     sphere_skin : float
         Relative skin of the sphere collider (``--collider spheres``).
+    untangle : bool
+        Move the garment out of the body before the dynamics (:mod:`vfit_engine.sim.untangle`;
+        mesh collider only), with strain limit ``max(limit, untangle_strain)`` and at most
+        ``untangle_iterations`` iterations.
+    untangle_strain : float;  untangle_iterations : int
+    contact_damping : float, 1/s
+        Decay rate of the tangential velocity of cloth the body pushes (mesh collider).
+    pin_strain : float
+        A pin whose garment edge to another pin would be stretched more than this on the
+        target body is released (:func:`drape_garment`).
     """
 
     fps: float = 60.0
-    max_frames: int = 300
+    max_frames: int = 400
     substeps: int = 8
     strain_limit: float | None = None
     strain_cap: float = 0.015
     strain_iterations: int = 10
     strain_relaxation: float = 1.5
     air_damping: float = 2.0
-    skin: float = 0.003
+    skin: float = 0.002
     friction: float = 0.8
     push_start: float = 0.0002
     push_end: float = 0.005
     ramp_frames: int = 40
     settle_speed: float = 0.005
     settle_frames: int = 8
+    settle_quantile: float = 0.99
+    pin_strain: float = 0.03
+    settle_max_speed: float = 0.03
     diverge_speed: float = 20.0
     sphere_skin: float = 0.02
+    untangle: bool = True
+    untangle_strain: float = 0.08
+    untangle_iterations: int = 150
+    contact_damping: float = 20.0
 
     def __post_init__(self):
-        for name in ("fps", "skin", "push_start", "push_end", "settle_speed", "diverge_speed"):
+        if not 0.0 < self.settle_quantile <= 1.0:
+            raise InputError(f"drape setting settle_quantile must be in (0, 1], got {self.settle_quantile!r}")
+        for name in ("fps", "skin", "push_start", "push_end", "settle_speed", "settle_max_speed", "diverge_speed"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise InputError(f"drape setting {name} must be a positive number, got {value!r}")
@@ -199,12 +231,23 @@ def _tri_frames(verts, tris, which):
 
 
 class _RampedMesh:
-    """The body MeshCollider with a per-substep push limit the frame loop ramps."""
+    """The body MeshCollider with a per-substep push limit the frame loop ramps.
 
-    def __init__(self, mesh, max_push):
+    ``contact_args`` makes :class:`~vfit_engine.sim.solver_verlet.SolverVerlet` solve the
+    contacts inside its strain-limit iterations (:mod:`vfit_engine.kernels.drape_step`);
+    :meth:`project` is the stand-alone projection for other callers.
+    """
+
+    def __init__(self, mesh, max_push, reach=0.002, damping=0.0):
         self.mesh = mesh
+        self.damping = float(damping)
         self.max_push = float(max_push)
+        self.reach = float(reach)
         self.seconds = 0.0
+
+    def contact_args(self):
+        m = self.mesh
+        return m._mesh_args, m.skin, self.reach, m.friction, self.max_push, self.damping
 
     def project(self, x, x_prev, inv_mass):
         t0 = time.perf_counter()
@@ -229,7 +272,9 @@ class DrapeResult:
     setup_time : float, s
         Cloth model, colliders and pins.
     collide_time : float, s
-        Wall time inside the body collider's projection.
+        Wall time inside a stand-alone collider projection (0 for the mesh collider, whose
+        contacts run inside the fused substep kernel; ``settings['contact_queries']`` counts
+        its mesh queries).
     converged : bool
     max_speed : float, m/s
         Fastest particle at the last frame.
@@ -350,7 +395,7 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
         body_collider = MeshCollider(body_verts, body_tris, skin=st.skin, friction=st.friction)
     else:
         body_collider.skin, body_collider.friction = float(st.skin), float(st.friction)
-    ramped = _RampedMesh(body_collider, st.push_start)
+    ramped = _RampedMesh(body_collider, st.push_start, damping=st.contact_damping)
     if collider == "mesh":
         colliders = [ramped]
     elif collider == "spheres":
@@ -364,10 +409,21 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     solver = SolverVerlet(model, vs, colliders)
     frame_dt = 1.0 / st.fps
     dt = frame_dt / int(st.substeps)
-    state = solver.init_state(dt)
-    n = model.particle_count
-    pin_from = pos0[pin_idx].copy()
     pin_to = np.zeros((0, 3)) if pins is None else np.ascontiguousarray(pins[1], dtype=np.float64)
+    start = pos0
+    untangle_info = None
+    if collider == "mesh" and st.untangle:
+        from vfit_engine.sim.untangle import untangle
+
+        start = pos0.copy()
+        start[pin_idx] = pin_to
+        start, untangle_info = untangle(start, face_verts, face_offsets, body_collider,
+                                        np.stack([solver._lim_i, solver._lim_j], axis=1),
+                                        solver._lim_len * ((1.0 + max(limit, st.untangle_strain)) / (1.0 + limit)),
+                                        st.skin, pinned=pin_idx, max_iterations=int(st.untangle_iterations))
+    state = solver.init_state(dt, pos=start)
+    n = model.particle_count
+    pin_from = start[pin_idx].copy()
     pin_now = pin_from.copy()
     # scratch for the per-frame checks (no allocation inside the frame loop)
     last_good = pos0.copy()
@@ -379,6 +435,8 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     settled_run = 0
     converged = False
     max_speed = 0.0
+    frame_speed = frame_speed_q = 0.0
+    q_index = min(max(int(math.ceil(st.settle_quantile * n)) - 1, 0), max(n - 1, 0))
     frame = 0
     ramp = max(int(st.ramp_frames), 1)
     for frame in range(1, int(st.max_frames) + 1):
@@ -399,10 +457,20 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
             what = "NaN/infinite positions" if not math.isfinite(max_speed) else f"a particle at {max_speed:.3g} m/s"
             raise DrapeDiverged(f"simulation diverged at frame {frame} ({what}); last good frame {frame - 1}",
                                 frame=frame, last_good=last_good.copy(), last_good_frame=frame - 1)
+        # settling is judged on each particle's mean velocity over the frame, so a substep-level
+        # jitter of a few springs (zero net motion) does not hold the drape open
+        np.subtract(state.pos, last_good, out=disp)
+        np.multiply(disp, disp, out=disp)
+        np.sum(disp, axis=1, out=speed2)
+        frame_speed = math.sqrt(float(speed2.max())) / frame_dt if n else 0.0
+        # the settle statistic: a quantile of the frame speeds (a handful of particles jittering in
+        # place on the body by a fraction of a mm must not hold the drape open), bounded by
+        # ``settle_max_speed`` for the fastest particle
+        frame_speed_q = math.sqrt(float(np.partition(speed2, q_index)[q_index])) / frame_dt if n else 0.0
         np.copyto(last_good, state.pos)
         if on_frame is not None:
             on_frame(frame, state.pos, state)
-        if frame >= ramp and max_speed < st.settle_speed:
+        if frame >= ramp and frame_speed_q < st.settle_speed and frame_speed < st.settle_max_speed:
             settled_run += 1
             if settled_run >= st.settle_frames:
                 converged = True
@@ -412,7 +480,9 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     wall = time.perf_counter() - t0
     pos = state.pos.copy()
     settings_out = asdict(st)
-    settings_out.update(strain_limit_used=limit, material=mat.to_dict(), collider=collider)
+    settings_out.update(strain_limit_used=limit, material=mat.to_dict(), collider=collider, untangle=untangle_info,
+                        contact_queries=int(getattr(solver, "contact_queries", 0)),
+                        frame_speed=frame_speed, frame_speed_quantile=frame_speed_q)
     return DrapeResult(
         pos=pos, frames=frame, steps=int(state.step_count), sim_time=float(state.time), wall_time=wall,
         setup_time=setup_time, collide_time=ramped.seconds, converged=converged, max_speed=max_speed,
@@ -501,13 +571,35 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         dropped = int(np.count_nonzero(~keep))
         idx = idx[keep]
         att = att.select(keep)
+    stretched = 0
     if idx.size:
-        pins = (att, att.positions(body_verts, body_tris, min_offset=st.skin))
+        target = att.positions(body_verts, body_tris, min_offset=st.skin)
+        # on a morphed body two pins joined by a spring may land farther apart than the cloth can
+        # stretch; the pin later in the list is released and the cloth between them hangs freely
+        from vfit_engine.garment.springs import build_springs
+
+        # every spring pair (edges, quad diagonals, second neighbours), so that a released pin
+        # is not left between two pins that are still too far apart
+        edges = build_springs(garment_mesh.face_verts, garment_mesh.face_offsets, garment_mesh.verts).indices
+        slot = np.full(garment_mesh.n_verts, -1, dtype=np.int64)
+        slot[idx] = np.arange(idx.size)
+        both = edges[(slot[edges[:, 0]] >= 0) & (slot[edges[:, 1]] >= 0)]
+        if both.size:
+            a, b = slot[both[:, 0]], slot[both[:, 1]]
+            rest = np.linalg.norm(garment_mesh.verts[both[:, 1]] - garment_mesh.verts[both[:, 0]], axis=1)
+            strain = np.linalg.norm(target[b] - target[a], axis=1) / np.maximum(rest, 1e-12) - 1.0
+            release = np.zeros(idx.size, dtype=bool)
+            release[np.maximum(a, b)[strain > st.pin_strain]] = True
+            stretched = int(np.count_nonzero(release))
+            idx, att, target = idx[~release], att.select(~release), target[~release]
+    if idx.size:
+        pins = (att, target)
     res = drape(garment_mesh.verts, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
                 material=material, pins=pins, collider=collider, settings=st, body_collider=body_collider,
                 on_frame=on_frame)
     res.settings["pins"] = dict(
         mode=pin if isinstance(pin, str) else "file", count=int(idx.size), dropped_inside=dropped,
+        released_stretched=stretched,
         pieces=None if info is None else [{k: p[k] for k in ("piece", "kind", "method", "n_pins")}
                                           for p in info["pieces"]])
     res.pin_indices = idx

@@ -261,8 +261,19 @@ class SolverVerlet:
         else:
             pin_idx, pin_from, pin_to = self._no_pins, self._no_pin_pos, self._no_pin_pos
 
-        kernel = substeps_parallel if self.settings.parallel else substeps_serial
         st = self.settings
+        mesh = [c for c in other if hasattr(c, "contact_args")]
+        if mesh:
+            if len(mesh) > 1 or fused:
+                raise ValueError("a fused mesh-contact collider must be the only collider")
+            self._advance_contacts(state, mesh[0], pin_idx, pin_from, pin_to, dt, n_sub)
+            for c in other:
+                if c is not mesh[0]:
+                    c.project(state.pos, state.pos_prev, self._inv_mass)
+            state.time += dt * n_sub
+            state.step_count += n_sub
+            return state
+        kernel = substeps_parallel if self.settings.parallel else substeps_serial
         args_head = (state.pos, state.pos_prev, self._inv_mass, self._gravity, self._gather,
                      self._si, self._sj, self._rest, self._k, self._kd,
                      self._adj_off, self._adj_j, self._adj_rest, self._adj_k, self._adj_kd,
@@ -279,6 +290,32 @@ class SolverVerlet:
         state.time += dt * n_sub
         state.step_count += n_sub
         return state
+
+    def _advance_contacts(self, state, coll, pin_idx, pin_from, pin_to, dt, n_sub):
+        """Substeps with the body contacts solved inside the strain-limit iterations
+        (:mod:`vfit_engine.kernels.drape_step`); ``coll.contact_args()`` gives
+        ``(mesh_args, skin, reach, friction, max_push, contact_damping)`` (contact damping a rate, 1/s)."""
+        from vfit_engine.kernels.drape_step import drape_substeps
+
+        n = self.model.particle_count
+        if getattr(self, "_contact_owner", None) is not coll:
+            self._contact_owner = coll
+            self._x_last = np.zeros((n, 3))
+            self._d_last = np.full(n, -np.inf)
+            self._c_n = np.zeros((n, 3))
+            self._c_h = np.zeros(n)
+            self._c_push = np.zeros(n)
+            self._c_list = np.zeros(n, dtype=np.int64)
+            self.contact_queries = 0
+        mesh_args, skin, reach, friction, max_push, contact_damping = coll.contact_args()
+        st = self.settings
+        # the limited springs in serial order (colours only matter for the parallel kernel)
+        self.contact_queries += drape_substeps(
+            state.pos, state.pos_prev, self._inv_mass, self._gravity, self._si, self._sj, self._rest,
+            self._k, self._kd, self._lim_i, self._lim_j, self._lim_len, int(st.strain_limit_iterations),
+            float(st.strain_limit_relaxation), pin_idx, pin_from, pin_to, dt, self._c_air, 0, n_sub, n_sub,
+            *mesh_args, float(skin), float(reach), float(friction), float(max_push),
+            1.0 - math.exp(-float(contact_damping) * dt), self._x_last, self._d_last, self._c_n, self._c_h, self._c_push, self._c_list, self._f)
 
     # -- diagnostics -------------------------------------------------------------
     def max_stretch(self, state, spring_type=0):
