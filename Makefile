@@ -1,5 +1,5 @@
 # Two commands for a fresh machine with Python >= 3.10 and make:
-#   make demo   - create .venv, install vfit, build a body to measurements (and drape a garment) into out/
+#   make demo   - create .venv, install vfit, build a body to measurements, measure it, drape a skirt into out/
 #   make test   - create/reuse .venv, install vfit with its test extra, run the test suite
 PYTHON ?= python3
 VENV   := .venv
@@ -22,6 +22,8 @@ demo: install
 	mkdir -p out
 	$(BIN)/vfit morph --waist 72 --bust 90 --hips 98 --height 168 -o out/body.obj --json out/morph.json
 	$(BIN)/vfit measure out/body.obj --json out/measure.json
+	$(BIN)/vfit drape data/garments/skirt.obj -o out/drape --every 20 --quiet
+	@echo "demo written to out/: body.obj, morph.json, measure.json, drape/ (final.obj, report.json, frames)"
 
 test: install
 	$(BIN)/python -m pytest -q

@@ -12,27 +12,9 @@ needs_shared = pytest.mark.skipif(not GARMENTS.is_dir(), reason="../shared not p
 
 def skirt_mesh(body_verts, body_tris, around=40, rows=8):
     """An open cylinder (quads, with UVs) from the body's waist to below its crotch, clear of the hips."""
-    from vfit_engine.garment.pins import body_levels
-    from vfit_engine.io.mesh import mesh_from_faces
+    from vfit_engine.garment.demo_skirt import tube_skirt
 
-    lv = body_levels(body_verts, body_tris)
-    top, bottom = lv["waist_y"], lv["crotch_y"] - 0.08
-    band = body_verts[(body_verts[:, 1] < top) & (body_verts[:, 1] > lv["crotch_y"])
-                      & (np.abs(body_verts[:, 0] - lv["center_x"]) < 0.2)]
-    cz = 0.5 * (band[:, 2].min() + band[:, 2].max())
-    radius = float(np.max(np.hypot(band[:, 0] - lv["center_x"], band[:, 2] - cz))) + 0.015
-    ang = 2 * np.pi * np.arange(around) / around
-    ys = np.linspace(top, bottom, rows)
-    verts = np.array([[lv["center_x"] + radius * np.sin(a), y, cz + radius * np.cos(a)] for y in ys for a in ang])
-    faces, fuv = [], []
-    uvs = np.array([[i / around, 1 - r / (rows - 1)] for r in range(rows) for i in range(around + 1)])
-    for r in range(rows - 1):
-        for i in range(around):
-            j = (i + 1) % around
-            faces.append([r * around + i, (r + 1) * around + i, (r + 1) * around + j, r * around + j])
-            u = lambda rr, ii: rr * (around + 1) + ii  # noqa: E731
-            fuv.append([u(r, i), u(r + 1, i), u(r + 1, i + 1), u(r, i + 1)])
-    return mesh_from_faces(verts, np.array(faces), uvs=uvs, face_uvs=np.array(fuv))
+    return tube_skirt(body_verts, body_tris, around=around, rows=rows, clearance=0.015, below_crotch=0.08)
 
 
 @pytest.fixture(scope="module")

@@ -347,3 +347,16 @@ def test_auto_pins_on_shared_garments_and_default_body():
         tri, bary = attach_to_body(g.mesh.verts[pins], bv, tris)
         d = np.linalg.norm(attached_positions(tri, bary, bv, tris) - g.mesh.verts[pins], axis=1)
         assert d.max() < 0.06
+
+
+def test_demo_skirt_is_reproducible():
+    """data/garments/skirt.obj is what vfit_engine.garment.demo_skirt builds on the default body."""
+    from vfit_engine.body.model import BodyModel, data_dir
+    from vfit_engine.garment.demo_skirt import tube_skirt
+    from vfit_engine.io.mesh import read_mesh
+
+    model = BodyModel.load()
+    built = tube_skirt(model.default_verts("female"), model.body_tris)
+    shipped = read_mesh(data_dir() / "garments" / "skirt.obj")
+    assert shipped.n_verts == built.n_verts and np.array_equal(shipped.face_verts, built.face_verts)
+    assert np.abs(shipped.verts - built.verts).max() < 1e-8

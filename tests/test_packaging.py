@@ -17,7 +17,7 @@ def test_wheel_contents(tmp_path):
     wheel = next(tmp_path.glob("vfit-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
     for required in ("vfit_engine/data/hm08.npz", "vfit_engine/data/rulers.json", "vfit_engine/data/LICENSE-CC0.txt",
-                     "vfit_engine/data/rig_default.json", "vfit_cli/main.py", "vfit_engine/kernels/girth.py"):
+                     "vfit_engine/data/rig_default.json", "vfit_engine/data/garments/skirt.obj", "vfit_cli/main.py", "vfit_engine/kernels/girth.py"):
         assert required in names, required
     assert not any(n.startswith("cli/") for n in names), "a top-level 'cli' package must not be installed"
     entry = next(n for n in names if n.endswith("entry_points.txt"))
