@@ -70,6 +70,7 @@ def test_morph_usage_errors(tmp_path, args, needle):
     out = tmp_path / "x.obj"
     r = CliRunner().invoke(cli, ["morph", *args, "-o", str(out)])
     assert r.exit_code == 2 and needle in r.output
+    assert len(r.output.strip().splitlines()) == 1, r.output
     assert not out.exists()
 
 
