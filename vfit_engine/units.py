@@ -5,23 +5,10 @@ kilograms; MakeHuman's assets are in decimetres.
 """
 import numpy as np
 
+from .errors import InputError
+
 #: metres per unit, for every length unit vfit accepts.
 LENGTH_UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001}
-
-
-def to_metres(value, unit):
-    """Convert ``value`` (scalar or array) in ``unit`` to metres."""
-    return np.asarray(value, dtype=np.float64) * LENGTH_UNITS[unit] if np.ndim(value) else float(value) * LENGTH_UNITS[unit]
-
-
-def from_metres(value, unit):
-    """Convert ``value`` in metres to ``unit``."""
-    return np.asarray(value, dtype=np.float64) / LENGTH_UNITS[unit] if np.ndim(value) else float(value) / LENGTH_UNITS[unit]
-
-
-def cm(value_m):
-    """Metres to centimetres (what every report prints)."""
-    return from_metres(value_m, "cm")
 
 
 def guess_length_unit(height, expected_m=1.7):
@@ -31,6 +18,6 @@ def guess_length_unit(height, expected_m=1.7):
     to ``expected_m`` metres, e.g. a 16.6 high body is in decimetres.
     """
     if not np.isfinite(height) or height <= 0:
-        raise ValueError("cannot guess units of a mesh with no height")
+        raise InputError("cannot guess the units of a mesh with no height (give --units)")
     best = min(LENGTH_UNITS, key=lambda u: abs(np.log(height * LENGTH_UNITS[u] / expected_m)))
     return best

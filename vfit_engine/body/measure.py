@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..units import LENGTH_UNITS
 from .model import N_BODY, BodyModel
 
 DEFINITIONS = ("iso", "makehuman", "spline")
@@ -72,7 +73,7 @@ class Measurement:
 
     def cm(self) -> dict:
         """Values in centimetres, rounded to 0.01 mm."""
-        return {k: round(v * 100.0, 3) for k, v in self.values.items()}
+        return {k: round(v / LENGTH_UNITS["cm"], 3) for k, v in self.values.items()}
 
 
 def band_limits(verts: np.ndarray, rulers: dict) -> dict:
@@ -89,11 +90,6 @@ def _band_anchors(name: str, fraction: float):
     if name == "waist":  # from the hips ruler's mean height (0) to the underbust ruler's (1)
         return (("hips-circ", 1.0 - fraction), ("underbust-circ", fraction))
     return ((_BANDS[name][0], 1.0),)
-
-
-def band_mode(name: str) -> str:
-    """'max' or 'min': whether a plane-based girth is the largest or smallest over its band."""
-    return "min" if name == "waist" else _BANDS[name][3]
 
 
 def ruler_length(verts: np.ndarray, indices) -> float:

@@ -188,9 +188,6 @@ class BodyModel:
         return {g: verts[self.group(g)].mean(axis=0) for g in self.group_names if g.startswith("joint-")}
 
     # ------------------------------------------------------------------ targets
-    def has_target(self, name: str) -> bool:
-        return name in self._target_id
-
     def target(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Sparse target: (vertex index (k,) int64, delta (k, 3) float64 m)."""
         try:

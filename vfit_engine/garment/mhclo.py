@@ -13,7 +13,7 @@ is no sign convention to get wrong). Files without scale lines use the identity.
 
 Units: the offsets ``d`` and the reference distances ``ref`` are in MakeHuman units (decimetres).
 ``evaluate_mhclo`` takes body vertices in metres, so it converts ``ref`` and ``d`` to metres
-(``units.to_metres(..., "dm")``): the ratio ``S`` is then unit-free and the offsets come out in metres.
+(``units.LENGTH_UNITS["dm"]``): the ratio ``S`` is then unit-free and the offsets come out in metres.
 """
 from __future__ import annotations
 
