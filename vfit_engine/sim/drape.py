@@ -5,11 +5,13 @@ One drape (:func:`drape`) is:
 1. a cloth :class:`~vfit_engine.sim.model.Model` built on the garment as given (its rest lengths
    are the garment's own edge lengths: MakeHuman clothes are modelled on the default body of
    their gender, so they start unstretched there);
-2. pins (:class:`PinAttachment`): each pinned garment vertex is bound to the nearest point of the
+2. pins (:class:`~vfit_engine.sim.pin_fit.PinAttachment`): each pinned garment vertex is bound to the nearest point of the
    *reference* body (the body the garment was modelled on) as a triangle, barycentric
    coordinates and a normal offset; on the *current* body the same triangle gives its target,
    so pins follow a morphed body. Offsets are clamped to at least the collider skin so a pin
-   never sits inside the body. Pins move to their targets over the first ``ramp_frames`` (at
+   never sits inside the body. On a morphed body a pinned waistband is spread evenly and a
+   pinned patch (shoulders) moved rigidly where following the triangles would stretch the cloth
+   (:mod:`vfit_engine.sim.pin_fit`). Pins move to their targets over the first ``ramp_frames`` (at
    once when the garment is untangled, step 3);
 3. the garment is untangled (:mod:`vfit_engine.sim.untangle`, mesh collider): garments usually
    start partly inside the body (up to ~13 mm on the default body, more on a wider one), and
@@ -42,6 +44,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from vfit_engine.errors import InputError, VfitError
+from vfit_engine.sim.pin_fit import PinAttachment  # noqa: F401  (public here too)
 
 
 class DrapeDiverged(VfitError):
@@ -118,6 +121,9 @@ class DrapeSettings:
     pin_strain : float
         A pin whose garment edge to another pin would be stretched more than this on the
         target body is released (:func:`drape_garment`).
+    pin_fit_strain : float
+        A pinned loop (waistband) some spring of which following the body would stretch more than
+        this is refitted evenly on the body (:mod:`vfit_engine.sim.pin_fit`).
     """
 
     fps: float = 60.0
@@ -137,13 +143,14 @@ class DrapeSettings:
     settle_frames: int = 8
     settle_quantile: float = 0.99
     pin_strain: float = 0.03
+    pin_fit_strain: float = 0.015
     settle_max_speed: float = 0.03
     diverge_speed: float = 20.0
     sphere_skin: float = 0.02
     untangle: bool = True
     untangle_strain: float = 0.08
     untangle_iterations: int = 150
-    contact_damping: float = 20.0
+    contact_damping: float = 60.0
 
     def __post_init__(self):
         if not 0.0 < self.settle_quantile <= 1.0:
@@ -163,71 +170,6 @@ class DrapeSettings:
         if self.strain_limit is not None:
             return float(self.strain_limit)
         return float(min(material.max_strain, self.strain_cap))
-
-
-@dataclass
-class PinAttachment:
-    """Garment vertices bound to a body surface.
-
-    Attributes
-    ----------
-    indices : (p,) int64
-        Pinned garment vertices.
-    tri : (p,) int64
-        Body triangle of each pin.
-    bary : (p, 3) float64
-        Barycentric coordinates of the closest point (the foot) on that triangle.
-    local : (p, 3) float64, m
-        Pin minus foot in the triangle's frame (first edge, in-plane perpendicular, normal), so
-        the pin turns and moves with its triangle.
-    offset : (p,) float64, m
-        The normal component of ``local``: the pin's height above the body surface.
-    """
-
-    indices: np.ndarray
-    tri: np.ndarray
-    bary: np.ndarray
-    local: np.ndarray
-
-    @property
-    def offset(self):
-        return self.local[:, 2]
-
-    @classmethod
-    def attach(cls, garment_pos, indices, body_verts, body_tris):
-        """Bind ``garment_pos[indices]`` (m) to the body ``body_verts`` (m), ``body_tris``."""
-        from vfit_engine.garment.pins import attach_to_body, attached_positions
-
-        idx = np.asarray(indices, dtype=np.int64).ravel()
-        pts = np.asarray(garment_pos, dtype=np.float64)[idx]
-        tri, bary = attach_to_body(pts, body_verts, body_tris)
-        foot = attached_positions(tri, bary, body_verts, body_tris)
-        frame = _tri_frames(body_verts, body_tris, tri)
-        return cls(idx, tri, bary, np.einsum("pij,pj->pi", frame, pts - foot))
-
-    def select(self, keep):
-        """The attachment of the pins where ``keep`` (p,) bool is true."""
-        return PinAttachment(self.indices[keep], self.tri[keep], self.bary[keep], self.local[keep])
-
-    def positions(self, body_verts, body_tris, min_offset=0.0):
-        """(p, 3) float64 m: the pins on ``body_verts`` (same topology), height >= ``min_offset``."""
-        from vfit_engine.garment.pins import attached_positions
-
-        foot = attached_positions(self.tri, self.bary, body_verts, body_tris)
-        local = self.local.copy()
-        local[:, 2] = np.maximum(local[:, 2], min_offset)
-        return foot + np.einsum("pij,pi->pj", _tri_frames(body_verts, body_tris, self.tri), local)
-
-
-def _tri_frames(verts, tris, which):
-    """(p, 3, 3) orthonormal rows (edge direction, in-plane perpendicular, unit normal) of triangles."""
-    t = np.asarray(tris, dtype=np.int64)[which]
-    v = np.asarray(verts, dtype=np.float64)
-    e1 = v[t[:, 1]] - v[t[:, 0]]
-    n = np.cross(e1, v[t[:, 2]] - v[t[:, 0]])
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    return np.stack([e1, np.cross(n, e1), n], axis=1)
 
 
 class _RampedMesh:
@@ -571,27 +513,14 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         dropped = int(np.count_nonzero(~keep))
         idx = idx[keep]
         att = att.select(keep)
-    stretched = 0
+    fit = dict(released_stretched=0, refitted_groups=0)
     if idx.size:
-        target = att.positions(body_verts, body_tris, min_offset=st.skin)
-        # on a morphed body two pins joined by a spring may land farther apart than the cloth can
-        # stretch; the pin later in the list is released and the cloth between them hangs freely
-        from vfit_engine.garment.springs import build_springs
+        # on a morphed body pinned loops (waistbands) are spread evenly and pinned patches
+        # (shoulders) moved rigidly; pins the cloth still cannot reach are released (pin_fit)
+        from vfit_engine.sim.pin_fit import fit_pins
 
-        # every spring pair (edges, quad diagonals, second neighbours), so that a released pin
-        # is not left between two pins that are still too far apart
-        edges = build_springs(garment_mesh.face_verts, garment_mesh.face_offsets, garment_mesh.verts).indices
-        slot = np.full(garment_mesh.n_verts, -1, dtype=np.int64)
-        slot[idx] = np.arange(idx.size)
-        both = edges[(slot[edges[:, 0]] >= 0) & (slot[edges[:, 1]] >= 0)]
-        if both.size:
-            a, b = slot[both[:, 0]], slot[both[:, 1]]
-            rest = np.linalg.norm(garment_mesh.verts[both[:, 1]] - garment_mesh.verts[both[:, 0]], axis=1)
-            strain = np.linalg.norm(target[b] - target[a], axis=1) / np.maximum(rest, 1e-12) - 1.0
-            release = np.zeros(idx.size, dtype=bool)
-            release[np.maximum(a, b)[strain > st.pin_strain]] = True
-            stretched = int(np.count_nonzero(release))
-            idx, att, target = idx[~release], att.select(~release), target[~release]
+        idx, att, target, fit = fit_pins(garment_mesh, idx, att, body_verts, body_tris, st.skin, st.pin_strain,
+                                         st.pin_fit_strain)
     if idx.size:
         pins = (att, target)
     res = drape(garment_mesh.verts, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
@@ -599,7 +528,7 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
                 on_frame=on_frame)
     res.settings["pins"] = dict(
         mode=pin if isinstance(pin, str) else "file", count=int(idx.size), dropped_inside=dropped,
-        released_stretched=stretched,
+        **fit,
         pieces=None if info is None else [{k: p[k] for k in ("piece", "kind", "method", "n_pins")}
                                           for p in info["pieces"]])
     res.pin_indices = idx
