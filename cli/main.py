@@ -8,8 +8,7 @@ import sys
 
 import click
 
-from . import measure, morph
-from . import drape
+from . import drape, measure, morph, segment
 
 
 class OneLineErrors(click.Group):
@@ -47,6 +46,7 @@ def cli():
 cli.add_command(morph.morph)
 cli.add_command(measure.measure)
 cli.add_command(drape.drape)
+cli.add_command(segment.segment)
 
 
 if __name__ == "__main__":  # pragma: no cover
