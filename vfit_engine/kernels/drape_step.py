@@ -32,6 +32,7 @@ import math
 
 from vfit_engine._jit import njit
 from vfit_engine.kernels.collide_mesh import _query_point
+from vfit_engine.kernels.integrate import _advance_in_place, _move_pins
 from vfit_engine.kernels.springs import _spring_forces
 from vfit_engine.kernels.strain_limit import _limit_spring
 
@@ -85,18 +86,8 @@ def drape_substeps(x, xp, inv_mass, gravity, si, sj, rest, k, kd, lim_i, lim_j, 
     queries = 0
     for s in range(sub_begin, sub_end):
         _spring_forces(x, xp, inv_dt, si, sj, rest, k, kd, f)
-        for i in range(n):
-            w = inv_mass[i]
-            for c in range(3):
-                xi = x[i, c]
-                if w != 0.0:
-                    x[i, c] = xi + keep * (xi - xp[i, c]) + (w * f[i, c] + gravity[c]) * dt2
-                xp[i, c] = xi
-        alpha = (s + 1.0) / sub_total
-        for p in range(pin_idx.shape[0]):
-            i = pin_idx[p]
-            for c in range(3):
-                x[i, c] = pin_from[p, c] + alpha * (pin_to[p, c] - pin_from[p, c])
+        _advance_in_place(x, xp, inv_mass, f, gravity, keep, dt2)
+        _move_pins(x, pin_idx, pin_from, pin_to, (s + 1.0) / sub_total)
 
         n_contacts = 0
         for i in range(n):

@@ -38,6 +38,28 @@ from vfit_engine.kernels.strain_limit import _limit_spring
 
 
 @njit
+def _advance_in_place(x, xp, inv_mass, f, gravity, keep, dt2):
+    """One position-Verlet step with air damping, in place (the caller computed the forces ``f``):
+    x+ = x + keep (x - x-) + (w f + g) dt^2, x- = x; pinned particles (w = 0) keep their position."""
+    for i in range(x.shape[0]):
+        w = inv_mass[i]
+        for c in range(3):
+            xi = x[i, c]
+            if w != 0.0:
+                x[i, c] = xi + keep * (xi - xp[i, c]) + (w * f[i, c] + gravity[c]) * dt2
+            xp[i, c] = xi
+
+
+@njit
+def _move_pins(x, pin_idx, pin_from, pin_to, alpha):
+    """Pinned particles at ``alpha`` of the way from ``pin_from`` to ``pin_to`` (linear over a frame)."""
+    for p in range(pin_idx.shape[0]):
+        i = pin_idx[p]
+        for c in range(3):
+            x[i, c] = pin_from[p, c] + alpha * (pin_to[p, c] - pin_from[p, c])
+
+
+@njit
 def _integrate_verlet(x, xp, inv_mass, f, gravity, dt, c_air, x_out):
     """One Verlet update into ``x_out`` (n, 3), m; pinned particles keep ``x``."""
     dt2 = dt * dt
@@ -133,18 +155,8 @@ def _substeps_impl(x, xp, inv_mass, gravity, gather, si, sj, rest, k, kd,
         else:
             _spring_forces(x, xp, inv_dt, si, sj, rest, k, kd, f)
             # forces are known, so each particle can be advanced in place
-            for i in range(n):
-                w = inv_mass[i]
-                for c in range(3):
-                    xi = x[i, c]
-                    if w != 0.0:
-                        x[i, c] = xi + keep * (xi - xp[i, c]) + (w * f[i, c] + gravity[c]) * dt2
-                    xp[i, c] = xi
-        alpha = (s + 1.0) / sub_total
-        for p in range(pin_idx.shape[0]):
-            i = pin_idx[p]
-            for c in range(3):
-                x[i, c] = pin_from[p, c] + alpha * (pin_to[p, c] - pin_from[p, c])
+            _advance_in_place(x, xp, inv_mass, f, gravity, keep, dt2)
+        _move_pins(x, pin_idx, pin_from, pin_to, (s + 1.0) / sub_total)
         for _ in range(iterations):
             for c in range(n_colours):
                 start = colour_off[c]
