@@ -8,7 +8,7 @@ import sys
 
 import click
 
-from . import drape, measure, morph, segment
+from . import drape, measure, morph, segment, transfer
 
 
 class OneLineErrors(click.Group):
@@ -47,6 +47,7 @@ cli.add_command(morph.morph)
 cli.add_command(measure.measure)
 cli.add_command(drape.drape)
 cli.add_command(segment.segment)
+cli.add_command(transfer.transfer)
 
 
 if __name__ == "__main__":  # pragma: no cover

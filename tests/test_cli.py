@@ -15,7 +15,7 @@ def run(*args):
 
 
 @pytest.mark.parametrize("args", [["--help"], ["morph", "--help"], ["measure", "--help"], ["drape", "--help"],
-                                  ["segment", "--help"]])
+                                  ["segment", "--help"], ["transfer", "--help"]])
 def test_help(args):
     r = run(*args)
     assert r.exit_code == 0 and "Usage" in r.output
@@ -23,7 +23,7 @@ def test_help(args):
 
 def test_help_does_not_import_numba():
     code = ("import sys\nfrom click.testing import CliRunner\nfrom vfit_cli.main import cli\n"
-            "for a in (['--help'], ['morph', '--help'], ['measure', '--help'], ['segment', '--help']):\n"
+            "for a in (['--help'], ['morph', '--help'], ['measure', '--help'], ['segment', '--help'], ['transfer', '--help']):\n"
             "    assert CliRunner().invoke(cli, a).exit_code == 0\n"
             "print('numba' in sys.modules, 'scipy' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
