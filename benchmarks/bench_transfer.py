@@ -184,7 +184,7 @@ def main():
         print(json.dumps(report))
         return
 
-    from cli._common import fmt_table
+    from vfit_cli._common import fmt_table
 
     for n in report["notes"]:
         print("note:", n)

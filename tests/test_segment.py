@@ -233,7 +233,7 @@ def body_file(tmp_path_factory, body_model, female):
 
 
 def test_cli_segment(tmp_path, body_file):
-    from cli.segment import segment as cmd
+    from vfit_cli.segment import segment as cmd
     from vfit_engine.io.mesh import read_mesh
 
     out, js = tmp_path / "parts.ply", tmp_path / "parts.json"
@@ -250,7 +250,7 @@ def test_cli_segment(tmp_path, body_file):
 def test_cli_segment_bad_input(tmp_path):
     import trimesh
 
-    from cli.segment import segment as cmd
+    from vfit_cli.segment import segment as cmd
 
     ball = tmp_path / "ball.obj"
     trimesh.creation.icosphere(subdivisions=2).export(ball)

@@ -268,7 +268,7 @@ def cli_files(tmp_path_factory, body_model, female):
 
 
 def invoke(*args):
-    from cli.transfer import transfer as command
+    from vfit_cli.transfer import transfer as command
 
     return CliRunner().invoke(command, [str(a) for a in args])
 
