@@ -6,6 +6,8 @@ import click
 from . import morph as _morph
 from ._common import check_output_path, handle_errors, write_json
 
+#: Garment transfer methods (``vfit_engine.garment.transfer.METHODS``; listed here so --help imports no numpy).
+TRANSFER_METHODS = ("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none")
 #: ``vfit morph`` options reused here (same names, types and help), so the two commands agree.
 MORPH_OPTIONS = ("gender", "height", "weight") + _morph.GIRTH_OPTIONS + ("definition",)
 
@@ -37,6 +39,11 @@ def morph_options(func):
 @click.option("--pin", default="auto", show_default=True,
               help="auto (waistbands and shoulders, attached to the body), none, or a text file of garment "
                    "vertex indices (0-based, one per line).")
+@click.option("--transfer", type=click.Choice(TRANSFER_METHODS), default="auto", show_default=True,
+              help="Move the garment from the body it was made on (the default body of its gender) to the "
+                   "target body before draping: auto = mhclo-delta when a .mhclo is beside the garment and "
+                   "the body has its helper vertices (built from measurements or the default), else dqs; "
+                   "none = start where it is. On the default body every method but mhclo changes nothing.")
 @click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--frames", type=click.IntRange(1, 100000), default=None,
@@ -52,8 +59,8 @@ def morph_options(func):
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 @click.pass_context
 @handle_errors
-def drape(ctx, garment, body_path, material, collider, pin, units, frames, every, fmt, outdir, json_path, quiet,
-          gender, height, weight, definition, **girths):
+def drape(ctx, garment, body_path, material, collider, pin, transfer, units, frames, every, fmt, outdir, json_path,
+          quiet, gender, height, weight, definition, **girths):
     """Drape GARMENT (.obj/.ply) on a body and write the result to OUTDIR.
 
     Writes OUTDIR/final.obj (the garment's vertex order, faces and UVs; metres,
@@ -92,7 +99,13 @@ def drape(ctx, garment, body_path, material, collider, pin, units, frames, every
     from vfit_engine.body.model import N_BODY, BodyModel
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.io.mesh import write_mesh
-    from vfit_engine.sim.drape import DrapeDiverged, DrapeSettings, drape_garment, read_pin_file
+    from vfit_engine.sim.drape import (
+        DrapeDiverged,
+        DrapeSettings,
+        drape_garment,
+        read_pin_file,
+        transfer_garment,
+    )
     from vfit_engine.sim.materials import resolve_material
     from vfit_engine.sim.report import drape_report
 
@@ -103,29 +116,37 @@ def drape(ctx, garment, body_path, material, collider, pin, units, frames, every
         click.echo(f"Warning: {garment}: {w}", err=True)
     pins = pin if pin in ("auto", "none") else read_pin_file(pin, g.mesh.n_verts)
 
-    tag_gender = _garment_gender(g)
+    binding = _garment_binding(g)
+    tag_gender = binding.gender if binding is not None else None
     body_gender = gender if gender_given else (tag_gender or "female")
     model = BodyModel.load()
-    reference = model.default_verts(tag_gender or body_gender)[:N_BODY]
+    # all 19,158 vertices: the mhclo transfers read the helpers; the drape uses the first N_BODY
+    reference_full = model.default_verts(tag_gender or body_gender)
+    reference = reference_full[:N_BODY]
     if body_path:
         from vfit_engine.body.bodyio import read_body
 
         if not os.path.isfile(body_path):
             raise InputError(f"body file not found: {body_path}")
         body, _ = read_body(body_path, model, "auto")
+        body_full = body
         body_desc = {"source": body_path}
     elif morph_given or weight is not None:
         from vfit_engine.body.morph import Morpher
 
         targets = {k.replace("_", "-"): v / 100.0 for k, v in morph_given.items()}
         res = Morpher(model).solve(targets, gender=body_gender, definition=definition, weight_kg=weight)
-        body = res.verts[:N_BODY]
+        body_full = res.verts
+        body = body_full[:N_BODY]
         body_desc = {"source": "morph", "gender": body_gender, "definition": definition,
                      "targets_cm": {k: round(v * 100, 4) for k, v in targets.items()}, "weight_kg": weight}
     else:
-        body = reference
+        body, body_full = reference, reference_full
         body_desc = {"source": "default", "gender": body_gender}
     body = np.ascontiguousarray(body)
+    start, transfer_info = transfer_garment(g.mesh.verts, reference_full, body_full, model.body_tris, transfer,
+                                            binding)
+    moved = not (transfer_info["identity"] or transfer_info["method"] == "none")
 
     settings = DrapeSettings() if frames is None else DrapeSettings(max_frames=frames)
     ext = "." + fmt
@@ -149,14 +170,17 @@ def drape(ctx, garment, body_path, material, collider, pin, units, frames, every
             bar.update(1)
 
     if every:
-        save("frame_0000", g.mesh.verts)
+        save("frame_0000", start)
     context = dict(garment=garment, garment_units=g.units, garment_vertices=g.mesh.n_verts,
                    garment_gender=tag_gender, warnings=list(g.warnings), body=body_desc, material=mat.name,
-                   collider=collider)
+                   collider=collider, transfer=transfer_info)
     try:
         result = drape_garment(g.mesh, g.pieces, body, reference, model.body_tris, material=mat, pin=pins,
-                               collider=collider, settings=settings, on_frame=on_frame)
+                               collider=collider, settings=settings, on_frame=on_frame,
+                               start_verts=start if moved else None)
     except DrapeDiverged as exc:
+        if exc.transfer and "pin_gap_mm" in exc.transfer:
+            transfer_info["pin_gap_mm"] = exc.transfer["pin_gap_mm"]
         if bar is not None:
             bar.__exit__(None, None, None)
         if exc.last_good is not None:
@@ -168,6 +192,9 @@ def drape(ctx, garment, body_path, material, collider, pin, units, frames, every
         raise
     if bar is not None:
         bar.__exit__(None, None, None)
+    if "pin_gap_mm" in result.settings["transfer"]:
+        transfer_info["pin_gap_mm"] = result.settings["transfer"]["pin_gap_mm"]
+    result.settings["transfer"] = transfer_info
     save("final", result.pos)
     from vfit_engine.body.bodyio import write_body
 
@@ -207,14 +234,14 @@ def _prepare_outdir(outdir):
         raise InputError(f"cannot write to {outdir}: permission denied")
 
 
-def _garment_gender(g):
-    """'female'/'male' from the garment's .mhclo tags, else None."""
+def _garment_binding(g):
+    """The garment's parsed .mhclo (for its gender tags and the mhclo transfers), else None."""
     if g.mhclo_path is None:
         return None
     from vfit_engine.errors import InputError
     from vfit_engine.garment.mhclo import parse_mhclo
 
     try:
-        return parse_mhclo(g.mhclo_path).gender
+        return parse_mhclo(g.mhclo_path)
     except (InputError, OSError, ValueError):
         return None

@@ -5,7 +5,10 @@ that body morphed to -5 cm and +5 cm waist AND hips (iso tape girths). Acceptanc
 converged, all finite, no garment vertex deeper than 2 mm inside the body, at most 0.5 % of them
 inside at all, p99 structural strain <= 5 % and max <= 10 %.
 
-    python scripts/drape_quality.py [--garment NAME ...] [--material cotton] [--json]
+    python scripts/drape_quality.py [--garment NAME ...] [--material cotton] [--transfer none] [--json]
+
+``--transfer`` moves the garment from the default body to each case body before the drape
+(``vfit_engine.sim.drape.transfer_garment``; ``auto`` = mhclo-delta with the garment's .mhclo).
 """
 import argparse
 import json
@@ -43,14 +46,16 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--garment", action="append", help="garment name(s) (default: all)")
     ap.add_argument("--material", default="cotton")
+    ap.add_argument("--transfer", default="none",
+                    choices=("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none"),
+                    help="garment transfer to the case body before the drape (default: none)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args(argv)
     if not GARMENTS.is_dir():
         print("../shared not present", file=sys.stderr)
         return 1
 
-    from cli._common import fmt_table
-    from vfit_engine.body.model import N_BODY
+    from vfit_cli._common import fmt_table
     from vfit_engine.body.morph import Morpher
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.mhclo import parse_mhclo
@@ -63,14 +68,16 @@ def main(argv=None):
     rows, cases, bodies = [], [], {}
     for name in names:
         g = load_garment(GARMENTS / name / f"{name}.obj")
-        gender = (parse_mhclo(g.mhclo_path).gender if g.mhclo_path else None) or "female"
+        binding = parse_mhclo(g.mhclo_path) if g.mhclo_path else None
+        gender = (binding.gender if binding else None) or "female"
         if gender not in bodies:
             bodies[gender] = case_bodies(morpher, gender)
-        ref = bodies[gender][0][1][:N_BODY]
+        ref = bodies[gender][0][1]
         for label, verts in bodies[gender]:
             t0 = time.perf_counter()
-            r = drape_garment(g.mesh, g.pieces, verts[:N_BODY], ref, tris, material=args.material,
-                              settings=settings)
+            # full 19,158-vertex bodies: the mhclo transfers read helper vertices (the drape uses the skin)
+            r = drape_garment(g.mesh, g.pieces, verts, ref, tris, material=args.material, settings=settings,
+                              transfer=args.transfer, mhclo=binding)
             total = time.perf_counter() - t0
             m = r.metrics
             ok = passes(r)
@@ -80,6 +87,7 @@ def main(argv=None):
             cases.append(dict(garment=name, gender=gender, body=label, steps=r.steps, frames=r.frames,
                               converged=r.converged, wall_s=round(r.wall_time, 3), total_s=round(total, 3),
                               collide_s=round(r.collide_time, 3), pins=r.settings["pins"]["count"],
+                              transfer=r.settings["transfer"],
                               metrics={k: (round(v, 6) if isinstance(v, float) else v) for k, v in m.items()},
                               passed=ok))
             if not args.json:
@@ -87,7 +95,7 @@ def main(argv=None):
                                             "% inside", "p99 strain %", "max strain %", "result"]).splitlines()[-1],
                       flush=True)
     if args.json:
-        print(json.dumps(dict(material=args.material, settings=settings.__dict__, cases=cases,
+        print(json.dumps(dict(material=args.material, transfer=args.transfer, settings=settings.__dict__, cases=cases,
                               passed=sum(c["passed"] for c in cases), total=len(cases))))
     else:
         print()

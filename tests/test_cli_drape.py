@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from cli.main import cli
+from vfit_cli.main import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -42,12 +42,12 @@ def test_help():
     r = run("--help")
     assert r.exit_code == 0
     for opt in ("--body", "--waist", "--hips", "--material", "--collider", "--pin", "--frames", "--every", "--format",
-                "--json", "--quiet"):
+                "--json", "--quiet", "--transfer"):
         assert opt in r.output
 
 
 def test_vfit_help_does_not_import_numba():
-    code = "import sys; from cli.main import cli; cli(['drape', '--help'], standalone_mode=False); " \
+    code = "import sys; from vfit_cli.main import cli; cli(['drape', '--help'], standalone_mode=False); " \
            "print('numba' in sys.modules, 'numpy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "False False"
@@ -145,5 +145,44 @@ def test_bad_inputs_exit_2(tmp_path, skirt_file):
     bad_pins.write_text("0\n99999\n")
     assert "pin file" in one_line_error(run(skirt_file, "--units", "m", "-o", out, "--pin", bad_pins), 2)
     assert "not both" in one_line_error(run(skirt_file, "--body", skirt_file, "--waist", 70, "-o", out), 2)
+    assert "--transfer" in one_line_error(run(skirt_file, "-o", out, "--transfer", "warp"), 2)
+    # mhclo needs the garment's .mhclo, which the synthetic skirt has not
+    assert "mhclo" in one_line_error(run(skirt_file, "--units", "m", "-o", out, "--transfer", "mhclo"), 2)
     # nothing half-written
     assert not list(out.glob("*.obj")) and not list(out.glob(".*tmp"))
+
+
+def test_transfer_dqs_to_a_body_file(tmp_path, skirt_file, body_model):
+    """dqs onto a translated body moves the start by the translation; order, faces and UVs are kept."""
+    from vfit_engine.body.bodyio import write_body
+    from vfit_engine.body.model import N_BODY
+    from vfit_engine.io.mesh import read_mesh
+
+    shift = np.array([0.02, 0.04, -0.01])
+    body_file = tmp_path / "moved.obj"
+    write_body(body_file, body_model, body_model.default_verts("female")[:N_BODY] + shift)
+    out = tmp_path / "o"
+    r = run(skirt_file, "--body", body_file, "--units", "m", "-o", out, "--transfer", "dqs", "--frames", 3,
+            "--every", 50, "-q")
+    assert r.exit_code == 3, r.output  # 3 frames: not settled, outputs written
+    report = json.loads((out / "report.json").read_text())
+    t = report["transfer"]
+    assert t["requested"] == "dqs" and t["method"] == "dqs" and t["identity"] is False and t["time_s"] >= 0
+    assert abs(t["max_move_mm"] - 1000 * np.linalg.norm(shift)) < 0.01 and t["pin_gap_mm"]["max"] < 0.01
+    src, start, fin = (read_mesh(p) for p in (skirt_file, out / "frame_0000.obj", out / "final.obj"))
+    assert np.allclose(start.verts, src.verts + shift, atol=1e-6)
+    for m in (start, fin):
+        assert m.n_verts == src.n_verts and np.array_equal(m.face_verts, src.face_verts)
+        assert np.array_equal(m.face_uvs, src.face_uvs) and np.allclose(m.uvs, src.uvs)
+
+
+def test_transfer_on_the_default_body_changes_nothing(tmp_path, skirt_file):
+    """On the garment's own body every transfer but mhclo is the identity: the same bytes as none."""
+    finals = []
+    for method in ("none", "dqs"):
+        r = run(skirt_file, "--units", "m", "-o", tmp_path / method, "--every", 0, "-q", "--transfer", method)
+        assert r.exit_code == 0, r.output
+        report = json.loads((tmp_path / method / "report.json").read_text())
+        assert report["transfer"]["method"] == method and report["transfer"]["identity"] is True
+        finals.append((tmp_path / method / "final.obj").read_bytes())
+    assert finals[0] == finals[1]

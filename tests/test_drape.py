@@ -244,3 +244,50 @@ def test_shared_garment_quality(morpher, name, delta_cm):
     assert res.converged and m["finite"]
     assert m["deep_count"] == 0 and m["inside_fraction"] <= 0.005
     assert m["p99_strain"] <= 0.05 and m["max_strain"] <= 0.10
+
+
+def test_transfer_is_the_identity_on_the_same_body(female):
+    from vfit_engine.garment.transfer import BodyFrames
+    from vfit_engine.sim.drape import transfer_garment
+
+    mesh = skirt_mesh(female["body"], female["tris"], around=16, rows=3)
+    for method in ("auto", "dqs", "lbs", "none"):
+        out, info = transfer_garment(mesh.verts, female["full"], female["body"], female["tris"], method)
+        assert np.array_equal(out, mesh.verts) and info["identity"] and info["max_move_mm"] == 0.0
+    assert info["method"] == "none"
+    # auto without a .mhclo binding is dqs; evaluated in full, dqs on the same body moves nothing either
+    assert transfer_garment(mesh.verts, female["body"], female["body"], female["tris"])[1]["method"] == "dqs"
+    frames = BodyFrames(female["body"], female["tris"])
+    assert np.allclose(frames.transfer(mesh.verts, female["body"], "dqs"), mesh.verts, atol=1e-9)
+
+
+def test_transfer_rejects_bad_methods(female):
+    from vfit_engine.sim.drape import drape_garment, transfer_garment
+
+    mesh = skirt_mesh(female["body"], female["tris"], around=16, rows=3)
+    with pytest.raises(InputError, match="unknown transfer method"):
+        transfer_garment(mesh.verts, female["body"], female["body"] + 0.01, female["tris"], "warp")
+    with pytest.raises(InputError, match="mhclo"):
+        transfer_garment(mesh.verts, female["body"], female["body"] + 0.01, female["tris"], "mhclo-delta")
+    with pytest.raises(InputError, match="unknown transfer method"):
+        drape_garment(mesh, None, female["body"] + 0.01, female["body"], female["tris"], transfer="warp")
+
+
+def test_transferred_start_agrees_with_the_pins(female):
+    """On a translated body dqs moves the garment by the translation, exactly where its pins go."""
+    from vfit_engine.sim.drape import DrapeSettings, drape_garment, transfer_garment
+
+    shift = np.array([0.03, 0.05, -0.02])
+    body, tris = female["body"] + shift, female["tris"]
+    mesh = skirt_mesh(female["body"], tris, around=16, rows=3)
+    out, info = transfer_garment(mesh.verts, female["full"], body, tris, "dqs")
+    assert info["method"] == "dqs" and not info["identity"]
+    assert np.allclose(out, mesh.verts + shift, atol=1e-9)
+    assert abs(info["max_move_mm"] - 1000 * np.linalg.norm(shift)) < 1e-6
+    res = drape_garment(mesh, None, body, female["body"], tris, settings=DrapeSettings(max_frames=3), transfer="dqs")
+    tinfo = res.settings["transfer"]
+    assert tinfo["method"] == "dqs" and tinfo["pin_gap_mm"]["max"] < 1e-6
+    assert np.allclose(res.pin_targets, mesh.verts[res.pin_indices] + shift, atol=1e-9)
+    # without the transfer the same pins start a translation away from their targets
+    none = drape_garment(mesh, None, body, female["body"], tris, settings=DrapeSettings(max_frames=3))
+    assert abs(none.settings["transfer"]["pin_gap_mm"]["max"] - 1000 * np.linalg.norm(shift)) < 1e-6

@@ -31,6 +31,10 @@ One drape (:func:`drape`) is:
    jitter in place by a fraction of a millimetre; ``settings['frame_speed']`` reports the
    maximum and ``settings['frame_speed_quantile']`` the percentile at the last frame).
 
+Before all this :func:`drape_garment` can move the garment from the body it was modelled on to the
+target body (:func:`transfer_garment`, ``transfer=``): the cloth then starts there, while its rest
+lengths stay the garment's own and the pins are attached and fitted as above.
+
 :func:`drape_metrics` measures the result against the exact body mesh (penetration depth and
 count, structural strain); :mod:`vfit_engine.sim.report` turns a result into ``report.json``.
 Everything is SI (m, s), Y up.
@@ -47,6 +51,10 @@ from vfit_engine.errors import InputError, VfitError
 from vfit_engine.sim.pin_fit import PinAttachment  # noqa: F401  (public here too)
 
 
+#: hm08 vertex counts: the visible body, and with the helpers the mhclo bindings read.
+_HM08_BODY, _HM08_ALL = 13380, 19158
+
+
 class DrapeDiverged(VfitError):
     """The simulation blew up (NaN or runaway speed). Exit 4.
 
@@ -57,9 +65,12 @@ class DrapeDiverged(VfitError):
     last_good : (n, 3) float64, m, or None
         Positions after the last finite frame (the initial ones if it was the first).
     last_good_frame : int
+    transfer : dict or None
+        The transfer info (:func:`drape_garment`), when raised from there.
     """
 
     exit_code = 4
+    transfer = None
 
     def __init__(self, message, frame=0, last_good=None, last_good_frame=0):
         super().__init__(message)
@@ -283,13 +294,13 @@ def drape_metrics(model, pos, body_collider):
 
 
 def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material="cotton", pins=None,
-          collider="mesh", settings=None, body_collider=None, on_frame=None):
+          collider="mesh", settings=None, body_collider=None, on_frame=None, start_pos=None):
     """Drape a garment on a body.
 
     Parameters
     ----------
     garment_pos : (n, 3) float64, m
-        Garment as given (also the cloth's rest shape).
+        Garment as given: the cloth's rest shape (and its start unless ``start_pos`` is given).
     face_verts : (k,) int64;  face_offsets : (m + 1,) int64
         The garment's polygons (flat, as in MeshData).
     body_verts : (N, 3) float64, m
@@ -306,6 +317,9 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     on_frame : callable or None
         ``on_frame(frame, pos, state)`` after each good frame (frame counts from 1; pos is the
         live (n, 3) array: copy it to keep it).
+    start_pos : (n, 3) float64, m, or None
+        Where the cloth starts (e.g. the garment transferred to this body, :func:`transfer_garment`);
+        None: ``garment_pos``. The rest lengths stay those of ``garment_pos``.
 
     Returns
     -------
@@ -352,12 +366,15 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     frame_dt = 1.0 / st.fps
     dt = frame_dt / int(st.substeps)
     pin_to = np.zeros((0, 3)) if pins is None else np.ascontiguousarray(pins[1], dtype=np.float64)
-    start = pos0
+    given = pos0 if start_pos is None else np.ascontiguousarray(start_pos, dtype=np.float64)
+    start = given
+    if start.shape != pos0.shape:
+        raise InputError(f"start positions {start.shape} do not match the garment {pos0.shape}")
     untangle_info = None
     if collider == "mesh" and st.untangle:
         from vfit_engine.sim.untangle import untangle
 
-        start = pos0.copy()
+        start = start.copy()
         start[pin_idx] = pin_to
         start, untangle_info = untangle(start, face_verts, face_offsets, body_collider,
                                         np.stack([solver._lim_i, solver._lim_j], axis=1),
@@ -368,7 +385,7 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     pin_from = start[pin_idx].copy()
     pin_now = pin_from.copy()
     # scratch for the per-frame checks (no allocation inside the frame loop)
-    last_good = pos0.copy()
+    last_good = given.copy()
     disp = np.zeros((n, 3))
     speed2 = np.zeros(n)
     setup_time = time.perf_counter() - t_setup
@@ -462,8 +479,56 @@ def read_pin_file(path, vertex_count):
     return np.unique(np.array(out, dtype=np.int64))
 
 
+def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, method="auto", mhclo=None):
+    """Move a garment from the body it was modelled on to the body it will be draped on.
+
+    Parameters
+    ----------
+    garment_verts : (n, 3) float64, m
+        The garment as modelled on ``reference_verts``.
+    reference_verts, body_verts : (13380 or 19158, 3) float64, m
+        hm08 bodies; mhclo methods need the 19,158 vertices with helpers.
+    body_tris : (T, 3) int64
+    method : {"auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none"}
+        :func:`vfit_engine.garment.transfer.transfer`; ``auto`` is ``mhclo-delta`` when a binding is
+        given and both bodies have the helper vertices it reads, else ``dqs``.
+    mhclo : MhcloBinding or None
+
+    Returns
+    -------
+    verts : (n, 3) float64, m
+    info : dict
+        ``requested``, ``method`` used, ``identity`` (same body: every method but mhclo is the
+        identity and is not evaluated), ``time_s``, ``max_move_mm``, ``mean_move_mm``.
+    """
+    from vfit_engine.garment import transfer as tr
+
+    if method not in tr.METHODS:
+        raise InputError(f"unknown transfer method {method!r}; use one of {', '.join(tr.METHODS)}")
+    t0 = time.perf_counter()
+    pts = np.ascontiguousarray(garment_verts, dtype=np.float64)
+    ref = np.ascontiguousarray(reference_verts, dtype=np.float64)
+    body = np.ascontiguousarray(body_verts, dtype=np.float64)
+    used = method
+    if method == "auto":
+        fits = mhclo is not None and min(ref.shape[0], body.shape[0]) > tr._mhclo_top(mhclo)
+        used = "mhclo-delta" if fits else "dqs"
+    n = min(ref.shape[0], body.shape[0], tr.N_BODY)
+    identity = used != "mhclo" and ref.shape[1:] == body.shape[1:] and np.array_equal(ref[:n], body[:n])
+    if identity or used == "none":
+        out = pts.copy()
+    elif used in ("dqs", "lbs"):
+        out = tr.BodyFrames(ref, body_tris).transfer(pts, body, method=used)
+    else:
+        out = tr.transfer(pts, ref, body, method=used, mhclo=mhclo)
+    move = np.linalg.norm(out - pts, axis=1) if pts.size else np.zeros(1)
+    return out, dict(requested=method, method=used, identity=bool(identity), time_s=time.perf_counter() - t0,
+                     max_move_mm=1000.0 * float(move.max()), mean_move_mm=1000.0 * float(move.mean()))
+
+
 def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, material="cotton", pin="auto",
-                  collider="mesh", settings=None, body_collider=None, on_frame=None):
+                  collider="mesh", settings=None, body_collider=None, on_frame=None, transfer="none", mhclo=None,
+                  start_verts=None):
     """Pick and attach pins, then :func:`drape` a garment on a body.
 
     Parameters
@@ -482,15 +547,37 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         As in :func:`drape`.
     pin : "auto", "none" or (p,) int64
         ``auto``: :func:`vfit_engine.garment.pins.auto_pins` on ``body_verts``.
+    transfer : str
+        :func:`transfer_garment` method moving the garment from ``reference_verts`` to
+        ``body_verts`` before the drape ("none": it starts where it is). The cloth's rest lengths
+        stay the garment's own; pins are attached on ``reference_verts`` as without transfer.
+    mhclo : MhcloBinding or None
+        The garment's binding, for the mhclo methods.
+    start_verts : (n, 3) float64 m or None
+        An already transferred start (then ``transfer`` is not applied).
 
     Returns
     -------
     DrapeResult
-        ``settings['pins']`` holds the pin count and the auto-pin summary.
+        ``settings['pins']`` holds the pin count and the auto-pin summary; ``settings['transfer']``
+        the :func:`transfer_garment` info and ``pin_gap_mm`` (max/mean distance of the started
+        pinned vertices from their targets on the body).
     """
     from vfit_engine.garment.pins import auto_pins
 
     st = settings or DrapeSettings()
+    if start_verts is not None:
+        start, tinfo = np.ascontiguousarray(start_verts, dtype=np.float64), dict(requested="given", method="given")
+    elif transfer != "none":
+        start, tinfo = transfer_garment(garment_mesh.verts, reference_verts, body_verts, body_tris, transfer, mhclo)
+    else:
+        start, tinfo = None, dict(requested="none", method="none", time_s=0.0)
+    if np.size(body_tris) and int(np.max(body_tris)) < _HM08_BODY:
+        # hm08's helper vertices (19,158 in all) serve the transfer only; the drape sees the skin
+        if np.shape(body_verts)[0] == _HM08_ALL:
+            body_verts = body_verts[:_HM08_BODY]
+        if np.shape(reference_verts)[0] == _HM08_ALL:
+            reference_verts = reference_verts[:_HM08_BODY]
     info = None
     if isinstance(pin, str) and pin == "auto":
         idx, info = auto_pins(garment_mesh, body_verts, body_tris, pieces=pieces)
@@ -519,13 +606,24 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         # (shoulders) moved rigidly; pins the cloth still cannot reach are released (pin_fit)
         from vfit_engine.sim.pin_fit import fit_pins
 
+        # also after a transfer: pins merely following the transferred garment (no refit) did worse
+        # on scripts/drape_quality.py (4/12 pass, 4 not settled, against 5/12)
         idx, att, target, fit = fit_pins(garment_mesh, idx, att, body_verts, body_tris, st.skin, st.pin_strain,
                                          st.pin_fit_strain)
     if idx.size:
         pins = (att, target)
-    res = drape(garment_mesh.verts, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
-                material=material, pins=pins, collider=collider, settings=st, body_collider=body_collider,
-                on_frame=on_frame)
+    from_pos = garment_mesh.verts if start is None else start
+    if pins is not None:
+        gap = 1000.0 * np.linalg.norm(from_pos[idx] - target, axis=1)
+        tinfo["pin_gap_mm"] = dict(max=float(gap.max()), mean=float(gap.mean()))
+    try:
+        res = drape(garment_mesh.verts, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
+                    material=material, pins=pins, collider=collider, settings=st, body_collider=body_collider,
+                    on_frame=on_frame, start_pos=start)
+    except DrapeDiverged as exc:
+        exc.transfer = tinfo
+        raise
+    res.settings["transfer"] = tinfo
     res.settings["pins"] = dict(
         mode=pin if isinstance(pin, str) else "file", count=int(idx.size), dropped_inside=dropped,
         **fit,
