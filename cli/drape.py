@@ -99,13 +99,8 @@ def drape(ctx, garment, body_path, material, collider, pin, transfer, units, fra
     from vfit_engine.body.model import N_BODY, BodyModel
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.io.mesh import write_mesh
-    from vfit_engine.sim.drape import (
-        DrapeDiverged,
-        DrapeSettings,
-        drape_garment,
-        read_pin_file,
-        transfer_garment,
-    )
+    from vfit_engine.garment.transfer import transfer_garment
+    from vfit_engine.sim.drape import DrapeDiverged, DrapeSettings, drape_garment, read_pin_file
     from vfit_engine.sim.materials import resolve_material
     from vfit_engine.sim.report import drape_report
 

@@ -8,7 +8,7 @@ inside at all, p99 structural strain <= 5 % and max <= 10 %.
     python scripts/drape_quality.py [--garment NAME ...] [--material cotton] [--transfer none] [--json]
 
 ``--transfer`` moves the garment from the default body to each case body before the drape
-(``vfit_engine.sim.drape.transfer_garment``; ``auto`` = mhclo-delta with the garment's .mhclo).
+(``vfit_engine.garment.transfer.transfer_garment``; ``auto`` = mhclo-delta with the garment's .mhclo).
 """
 import argparse
 import json

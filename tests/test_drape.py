@@ -248,7 +248,7 @@ def test_shared_garment_quality(morpher, name, delta_cm):
 
 def test_transfer_is_the_identity_on_the_same_body(female):
     from vfit_engine.garment.transfer import BodyFrames
-    from vfit_engine.sim.drape import transfer_garment
+    from vfit_engine.garment.transfer import transfer_garment
 
     mesh = skirt_mesh(female["body"], female["tris"], around=16, rows=3)
     for method in ("auto", "dqs", "lbs", "none"):
@@ -262,7 +262,8 @@ def test_transfer_is_the_identity_on_the_same_body(female):
 
 
 def test_transfer_rejects_bad_methods(female):
-    from vfit_engine.sim.drape import drape_garment, transfer_garment
+    from vfit_engine.garment.transfer import transfer_garment
+    from vfit_engine.sim.drape import drape_garment
 
     mesh = skirt_mesh(female["body"], female["tris"], around=16, rows=3)
     with pytest.raises(InputError, match="unknown transfer method"):
@@ -275,7 +276,8 @@ def test_transfer_rejects_bad_methods(female):
 
 def test_transferred_start_agrees_with_the_pins(female):
     """On a translated body dqs moves the garment by the translation, exactly where its pins go."""
-    from vfit_engine.sim.drape import DrapeSettings, drape_garment, transfer_garment
+    from vfit_engine.garment.transfer import transfer_garment
+    from vfit_engine.sim.drape import DrapeSettings, drape_garment
 
     shift = np.array([0.03, 0.05, -0.02])
     body, tris = female["body"] + shift, female["tris"]

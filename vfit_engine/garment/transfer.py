@@ -266,3 +266,50 @@ def transfer(garment_verts, source_body, target_body, method="auto", k=DEFAULT_K
     model = _default_model() if model is None else model
     frames = BodyFrames(src, model.body_tris)
     return frames.transfer(pts, dst, method=method, k=int(k))
+
+
+def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, method="auto", mhclo=None):
+    """Move a garment from the body it was modelled on to the body it will be draped on.
+
+    Parameters
+    ----------
+    garment_verts : (n, 3) float64, m
+        The garment as modelled on ``reference_verts``.
+    reference_verts, body_verts : (13380 or 19158, 3) float64, m
+        hm08 bodies; mhclo methods need the 19,158 vertices with helpers.
+    body_tris : (T, 3) int64
+    method : {"auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none"}
+        :func:`vfit_engine.garment.transfer.transfer`; ``auto`` is ``mhclo-delta`` when a binding is
+        given and both bodies have the helper vertices it reads, else ``dqs``.
+    mhclo : MhcloBinding or None
+
+    Returns
+    -------
+    verts : (n, 3) float64, m
+    info : dict
+        ``requested``, ``method`` used, ``identity`` (same body: every method but mhclo is the
+        identity and is not evaluated), ``time_s``, ``max_move_mm``, ``mean_move_mm``.
+    """
+    import time
+
+    if method not in METHODS:
+        raise InputError(f"unknown transfer method {method!r}; use one of {', '.join(METHODS)}")
+    t0 = time.perf_counter()
+    pts = np.ascontiguousarray(garment_verts, dtype=np.float64)
+    ref = np.ascontiguousarray(reference_verts, dtype=np.float64)
+    body = np.ascontiguousarray(body_verts, dtype=np.float64)
+    used = method
+    if method == "auto":
+        fits = mhclo is not None and min(ref.shape[0], body.shape[0]) > _mhclo_top(mhclo)
+        used = "mhclo-delta" if fits else "dqs"
+    n = min(ref.shape[0], body.shape[0], N_BODY)
+    identity = used != "mhclo" and ref.shape[1:] == body.shape[1:] and np.array_equal(ref[:n], body[:n])
+    if identity or used == "none":
+        out = pts.copy()
+    elif used in ("dqs", "lbs"):
+        out = BodyFrames(ref, body_tris).transfer(pts, body, method=used)
+    else:
+        out = transfer(pts, ref, body, method=used, mhclo=mhclo)
+    move = np.linalg.norm(out - pts, axis=1) if pts.size else np.zeros(1)
+    return out, dict(requested=method, method=used, identity=bool(identity), time_s=time.perf_counter() - t0,
+                     max_move_mm=1000.0 * float(move.max()), mean_move_mm=1000.0 * float(move.mean()))

@@ -32,7 +32,7 @@ One drape (:func:`drape`) is:
    maximum and ``settings['frame_speed_quantile']`` the percentile at the last frame).
 
 Before all this :func:`drape_garment` can move the garment from the body it was modelled on to the
-target body (:func:`transfer_garment`, ``transfer=``): the cloth then starts there, while its rest
+target body (:func:`vfit_engine.garment.transfer.transfer_garment`, ``transfer=``): the cloth then starts there, while its rest
 lengths stay the garment's own and the pins are attached and fitted as above.
 
 :func:`drape_metrics` measures the result against the exact body mesh (penetration depth and
@@ -318,7 +318,7 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
         ``on_frame(frame, pos, state)`` after each good frame (frame counts from 1; pos is the
         live (n, 3) array: copy it to keep it).
     start_pos : (n, 3) float64, m, or None
-        Where the cloth starts (e.g. the garment transferred to this body, :func:`transfer_garment`);
+        Where the cloth starts (e.g. the garment transferred to this body, :func:`vfit_engine.garment.transfer.transfer_garment`);
         None: ``garment_pos``. The rest lengths stay those of ``garment_pos``.
 
     Returns
@@ -479,53 +479,6 @@ def read_pin_file(path, vertex_count):
     return np.unique(np.array(out, dtype=np.int64))
 
 
-def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, method="auto", mhclo=None):
-    """Move a garment from the body it was modelled on to the body it will be draped on.
-
-    Parameters
-    ----------
-    garment_verts : (n, 3) float64, m
-        The garment as modelled on ``reference_verts``.
-    reference_verts, body_verts : (13380 or 19158, 3) float64, m
-        hm08 bodies; mhclo methods need the 19,158 vertices with helpers.
-    body_tris : (T, 3) int64
-    method : {"auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none"}
-        :func:`vfit_engine.garment.transfer.transfer`; ``auto`` is ``mhclo-delta`` when a binding is
-        given and both bodies have the helper vertices it reads, else ``dqs``.
-    mhclo : MhcloBinding or None
-
-    Returns
-    -------
-    verts : (n, 3) float64, m
-    info : dict
-        ``requested``, ``method`` used, ``identity`` (same body: every method but mhclo is the
-        identity and is not evaluated), ``time_s``, ``max_move_mm``, ``mean_move_mm``.
-    """
-    from vfit_engine.garment import transfer as tr
-
-    if method not in tr.METHODS:
-        raise InputError(f"unknown transfer method {method!r}; use one of {', '.join(tr.METHODS)}")
-    t0 = time.perf_counter()
-    pts = np.ascontiguousarray(garment_verts, dtype=np.float64)
-    ref = np.ascontiguousarray(reference_verts, dtype=np.float64)
-    body = np.ascontiguousarray(body_verts, dtype=np.float64)
-    used = method
-    if method == "auto":
-        fits = mhclo is not None and min(ref.shape[0], body.shape[0]) > tr._mhclo_top(mhclo)
-        used = "mhclo-delta" if fits else "dqs"
-    n = min(ref.shape[0], body.shape[0], tr.N_BODY)
-    identity = used != "mhclo" and ref.shape[1:] == body.shape[1:] and np.array_equal(ref[:n], body[:n])
-    if identity or used == "none":
-        out = pts.copy()
-    elif used in ("dqs", "lbs"):
-        out = tr.BodyFrames(ref, body_tris).transfer(pts, body, method=used)
-    else:
-        out = tr.transfer(pts, ref, body, method=used, mhclo=mhclo)
-    move = np.linalg.norm(out - pts, axis=1) if pts.size else np.zeros(1)
-    return out, dict(requested=method, method=used, identity=bool(identity), time_s=time.perf_counter() - t0,
-                     max_move_mm=1000.0 * float(move.max()), mean_move_mm=1000.0 * float(move.mean()))
-
-
 def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, material="cotton", pin="auto",
                   collider="mesh", settings=None, body_collider=None, on_frame=None, transfer="none", mhclo=None,
                   start_verts=None):
@@ -548,7 +501,7 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
     pin : "auto", "none" or (p,) int64
         ``auto``: :func:`vfit_engine.garment.pins.auto_pins` on ``body_verts``.
     transfer : str
-        :func:`transfer_garment` method moving the garment from ``reference_verts`` to
+        :func:`vfit_engine.garment.transfer.transfer_garment` method moving the garment from ``reference_verts`` to
         ``body_verts`` before the drape ("none": it starts where it is). The cloth's rest lengths
         stay the garment's own; pins are attached on ``reference_verts`` as without transfer.
     mhclo : MhcloBinding or None
@@ -560,7 +513,7 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
     -------
     DrapeResult
         ``settings['pins']`` holds the pin count and the auto-pin summary; ``settings['transfer']``
-        the :func:`transfer_garment` info and ``pin_gap_mm`` (max/mean distance of the started
+        the :func:`vfit_engine.garment.transfer.transfer_garment` info and ``pin_gap_mm`` (max/mean distance of the started
         pinned vertices from their targets on the body).
     """
     from vfit_engine.garment.pins import auto_pins
@@ -569,6 +522,8 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
     if start_verts is not None:
         start, tinfo = np.ascontiguousarray(start_verts, dtype=np.float64), dict(requested="given", method="given")
     elif transfer != "none":
+        from vfit_engine.garment.transfer import transfer_garment
+
         start, tinfo = transfer_garment(garment_mesh.verts, reference_verts, body_verts, body_tris, transfer, mhclo)
     else:
         start, tinfo = None, dict(requested="none", method="none", time_s=0.0)
