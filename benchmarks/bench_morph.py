@@ -14,15 +14,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _timing import median_ms
 
 
-def _median_ms(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return 1000 * float(np.median(times))
 
 
 def main():
@@ -44,15 +38,15 @@ def main():
     verts = model.default_verts("female")
     measurer.measure(verts)  # JIT compile or cache load
     first_measure_s = time.perf_counter() - t
-    iso_ms = _median_ms(lambda: measurer.measure(verts, "iso", mass=False), args.repeat * 4)
-    mh_ms = _median_ms(lambda: measurer.measure(verts, "makehuman", mass=False), args.repeat * 4)
+    iso_ms = median_ms(lambda: measurer.measure(verts, "iso", mass=False), args.repeat * 4)
+    mh_ms = median_ms(lambda: measurer.measure(verts, "makehuman", mass=False), args.repeat * 4)
     morpher = Morpher(model, measurer)
     six = {"waist": 0.70, "bust": 0.92, "hips": 1.00, "height": 1.70, "underbust": 0.76, "neck": 0.32}
     four = {"waist": 0.72, "bust": 0.90, "hips": 0.98, "height": 1.68}
     morpher.solve(six)
-    solve6_ms = _median_ms(lambda: morpher.solve(six), args.repeat)
-    solve4_ms = _median_ms(lambda: morpher.solve(four), args.repeat)
-    weight_ms = _median_ms(lambda: morpher.solve({"height": 1.75}, weight_kg=70.0), args.repeat)
+    solve6_ms = median_ms(lambda: morpher.solve(six), args.repeat)
+    solve4_ms = median_ms(lambda: morpher.solve(four), args.repeat)
+    weight_ms = median_ms(lambda: morpher.solve({"height": 1.75}, weight_kg=70.0), args.repeat)
 
     cli_s = float("nan")
     exe = shutil.which("vfit", path=str(Path(sys.executable).parent)) or shutil.which("vfit")

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _timing import median_ms
 
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
 CHANGES_CM = [("bust", -15), ("bust", 15), ("waist", -15), ("waist", 15), ("hips", -15), ("hips", 15)]
@@ -23,13 +24,6 @@ METHODS = ("none", "mhclo", "mhclo-delta", "lbs", "dqs")
 K_SWEEP = (1, 3, 6, 10, 20)
 
 
-def _median_ms(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return 1000 * float(np.median(times))
 
 
 def _targets(morpher, measurer, gender, notes):
@@ -100,15 +94,15 @@ def main():
     frames = BodyFrames(src, tris)
     rot = frames.rotations(tgt)
     timing = report["timing"]
-    timing["frames_prepare_ms"] = _median_ms(lambda: BodyFrames(src, tris), args.repeat)
-    timing["arap_rotations_ms"] = _median_ms(lambda: frames.rotations(tgt), args.repeat)
+    timing["frames_prepare_ms"] = median_ms(lambda: BodyFrames(src, tris), args.repeat)
+    timing["arap_rotations_ms"] = median_ms(lambda: frames.rotations(tgt), args.repeat)
     for k in (6, 20):
-        timing[f"bind_10k_k{k}_ms"] = _median_ms(lambda: frames.bind(pts, k), args.repeat)
+        timing[f"bind_10k_k{k}_ms"] = median_ms(lambda: frames.bind(pts, k), args.repeat)
     bind = frames.bind(pts, 6)
     for m in ("lbs", "dqs"):
-        timing[f"blend_10k_{m}_ms"] = _median_ms(
+        timing[f"blend_10k_{m}_ms"] = median_ms(
             lambda: frames.transfer(pts, tgt, m, rotations=rot, binding=bind), args.repeat)
-        timing[f"transfer_call_10k_{m}_ms"] = _median_ms(
+        timing[f"transfer_call_10k_{m}_ms"] = median_ms(
             lambda: transfer(pts, src, tgt, method=m, model=model), args.repeat)
     say("timing (median of %d, ms): " % args.repeat + ", ".join(f"{k[:-3]} {v:.1f}" for k, v in timing.items()))
 
@@ -151,11 +145,11 @@ def main():
                 else:
                     def run(m=m):
                         return transfer(g.verts, source, target, method=m, mhclo=b, model=model)
-                times[m].append(_median_ms(run, args.repeat))
+                times[m].append(median_ms(run, args.repeat))
                 pos = run()
                 per[m] = _metrics(pos, fit_src if m == "mhclo" else g.verts, edges, gtris, coll)
             for k in K_SWEEP:
-                t = _median_ms(lambda: fr.transfer(g.verts, target, "dqs", k=k, rotations=rot), args.repeat)
+                t = median_ms(lambda: fr.transfer(g.verts, target, "dqs", k=k, rotations=rot), args.repeat)
                 pos = fr.transfer(g.verts, target, "dqs", k=k, rotations=rot)
                 sweep[k].append(dict(_metrics(pos, g.verts, edges, gtris, coll), ms=t))
             entry["targets"][label] = per
