@@ -169,8 +169,9 @@ class MeshSections:
 
     def girths(self, verts, ys, method="hull", x0=0.0):
         """Torso girths at arbitrary heights ``ys`` (m) in one kernel call (m; NaN where a plane
-        misses the mesh). ``verts`` must be a C-contiguous float64 (n_verts, 3) array: this is the
-        fast path for callers that validated it once (the morph solver's inner loop)."""
+        misses the mesh). A C-contiguous float64 (n_verts, 3) ``verts`` is used as it is, without
+        the finiteness check (the fast path for the morph solver's inner loop, whose bodies are
+        finite by construction); anything else is validated like :meth:`scan`."""
         ys = np.ascontiguousarray(ys, dtype=np.float64).ravel()
         if verts.dtype != np.float64 or not verts.flags.c_contiguous or verts.shape != (self.n_verts, 3):
             verts = self._verts(verts)

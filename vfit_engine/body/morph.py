@@ -358,8 +358,8 @@ def _genders(g: float) -> tuple:
     return tuple(x for x, w in (("female", 1.0 - g), ("male", g)) if w > 0)
 
 
-def _gauss_newton(fun, x, lo, hi, reg, planes, x_ref=None, hard=None, jac=None, max_iter=40, fd_step=1e-5):
-    """Minimise ``|r(x)|^2 + |reg * (x - x_ref)|^2`` over ``lo <= x <= hi``.
+def _gauss_newton(fun, x, lo, hi, reg, planes, hard=None, jac=None, max_iter=40, fd_step=1e-5):
+    """Minimise ``|r(x)|^2 + |reg * x|^2`` over ``lo <= x <= hi``.
 
     ``fun(x, planes) -> (r, info)``. A trust-region Gauss-Newton: a
     forward-difference Jacobian with Broyden rank-one updates between refreshes,
@@ -373,10 +373,8 @@ def _gauss_newton(fun, x, lo, hi, reg, planes, x_ref=None, hard=None, jac=None, 
     """
     from scipy.optimize import lsq_linear
 
-    x_ref = np.zeros_like(x) if x_ref is None else x_ref
-
     def objective(r, x):
-        d = reg * (x - x_ref)
+        d = reg * x
         return float(r @ r + d @ d)
 
     def jacobian(x, r):
@@ -399,7 +397,7 @@ def _gauss_newton(fun, x, lo, hi, reg, planes, x_ref=None, hard=None, jac=None, 
     delta = 1.0
     for _ in range(max_iter):
         A = np.vstack([J, A_reg])
-        rhs = -np.concatenate([r, reg * (x - x_ref)])
+        rhs = -np.concatenate([r, reg * x])
         box = (np.maximum(lo - x, -delta) - 1e-15, np.minimum(hi - x, delta) + 1e-15)
         dx = lsq_linear(A, rhs, bounds=box, method="bvls", tol=1e-12).x
         if np.max(np.abs(dx)) < 1e-10:
