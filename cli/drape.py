@@ -44,6 +44,11 @@ def morph_options(func):
                    "target body before draping: auto = mhclo-delta when a .mhclo is beside the garment and "
                    "the body has its helper vertices (built from measurements or the default), else dqs; "
                    "none = start where it is. On the default body every method but mhclo changes nothing.")
+@click.option("--rest", type=click.Choice(["transferred", "garment"]), default="transferred", show_default=True,
+              help="Rest lengths of the cloth when the garment was transferred to another body: transferred = "
+                   "the garment graded to that body (MakeHuman's convention: clothes are refitted to every "
+                   "body); garment = the garment as given, a fixed size that the body stretches. The report "
+                   "gives the strain against the garment as given either way.")
 @click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--frames", type=click.IntRange(1, 100000), default=None,
@@ -59,7 +64,7 @@ def morph_options(func):
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 @click.pass_context
 @handle_errors
-def drape(ctx, garment, body_path, material, collider, pin, transfer, units, frames, every, fmt, outdir, json_path,
+def drape(ctx, garment, body_path, material, collider, pin, transfer, rest, units, frames, every, fmt, outdir, json_path,
           quiet, gender, height, weight, definition, **girths):
     """Drape GARMENT (.obj/.ply) on a body and write the result to OUTDIR.
 
@@ -142,6 +147,7 @@ def drape(ctx, garment, body_path, material, collider, pin, transfer, units, fra
     start, transfer_info = transfer_garment(g.mesh.verts, reference_full, body_full, model.body_tris, transfer,
                                             binding)
     moved = not (transfer_info["identity"] or transfer_info["method"] == "none")
+    transfer_info["rest"] = rest if moved else "garment"
 
     settings = DrapeSettings() if frames is None else DrapeSettings(max_frames=frames)
     ext = "." + fmt
@@ -172,7 +178,7 @@ def drape(ctx, garment, body_path, material, collider, pin, transfer, units, fra
     try:
         result = drape_garment(g.mesh, g.pieces, body, reference, model.body_tris, material=mat, pin=pins,
                                collider=collider, settings=settings, on_frame=on_frame,
-                               start_verts=start if moved else None)
+                               start_verts=start if moved else None, rest=rest)
     except DrapeDiverged as exc:
         if exc.transfer and "pin_gap_mm" in exc.transfer:
             transfer_info["pin_gap_mm"] = exc.transfer["pin_gap_mm"]
@@ -206,6 +212,9 @@ def drape(ctx, garment, body_path, material, collider, pin, transfer, units, fra
                    f"{'settled' if result.converged else 'NOT settled'}")
         click.echo(f"  max penetration {report['max_penetration_mm']:.2f} mm, {report['inside_count']} vertices "
                    f"inside; strain p99 {100 * report['p99_strain']:.2f} %, max {100 * report['max_strain']:.2f} %")
+        if transfer_info["rest"] == "transferred":
+            click.echo(f"  against the garment as given (before grading to this body): strain p99 "
+                       f"{100 * report['garment_p99_strain']:.2f} %, max {100 * report['garment_max_strain']:.2f} %")
         click.echo(f"wrote {os.path.join(outdir, 'final' + ext)}, {body_file}, {os.path.join(outdir, 'report.json')}")
     if not result.converged:
         click.echo(f"Error: the cloth did not settle within {settings.max_frames} frames "

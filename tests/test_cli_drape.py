@@ -42,7 +42,7 @@ def test_help():
     r = run("--help")
     assert r.exit_code == 0
     for opt in ("--body", "--waist", "--hips", "--material", "--collider", "--pin", "--frames", "--every", "--format",
-                "--json", "--quiet", "--transfer"):
+                "--json", "--quiet", "--transfer", "--rest"):
         assert opt in r.output
 
 
@@ -146,6 +146,7 @@ def test_bad_inputs_exit_2(tmp_path, skirt_file):
     assert "pin file" in one_line_error(run(skirt_file, "--units", "m", "-o", out, "--pin", bad_pins), 2)
     assert "not both" in one_line_error(run(skirt_file, "--body", skirt_file, "--waist", 70, "-o", out), 2)
     assert "--transfer" in one_line_error(run(skirt_file, "-o", out, "--transfer", "warp"), 2)
+    assert "--rest" in one_line_error(run(skirt_file, "-o", out, "--rest", "pattern"), 2)
     # mhclo needs the garment's .mhclo, which the synthetic skirt has not
     assert "mhclo" in one_line_error(run(skirt_file, "--units", "m", "-o", out, "--transfer", "mhclo"), 2)
     # nothing half-written
@@ -169,6 +170,9 @@ def test_transfer_dqs_to_a_body_file(tmp_path, skirt_file, body_model):
     t = report["transfer"]
     assert t["requested"] == "dqs" and t["method"] == "dqs" and t["identity"] is False and t["time_s"] >= 0
     assert abs(t["max_move_mm"] - 1000 * np.linalg.norm(shift)) < 0.01 and t["pin_gap_mm"]["max"] < 0.01
+    # graded by default; a translation changes no length, so both strains agree
+    assert t["rest"] == "transferred"
+    assert report["garment_max_strain"] == pytest.approx(report["max_strain"], abs=1e-6)
     src, start, fin = (read_mesh(p) for p in (skirt_file, out / "frame_0000.obj", out / "final.obj"))
     assert np.allclose(start.verts, src.verts + shift, atol=1e-6)
     for m in (start, fin):

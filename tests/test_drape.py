@@ -213,37 +213,69 @@ def test_auto_spheres_lie_inside_and_cover(body_model, female):
     assert np.percentile(gap, 95) < 0.01
 
 
-_ARMPIT = pytest.mark.xfail(reason="known gap: the female suits start ~1 cm inside the armpit crease and the cloth "
-                                   "there tears open (local strain > 10 %) when it is moved out", strict=True)
+# The female suits' short-sleeve hems are smaller than the arm they sit on: rest perimeter 214 and 225 mm
+# against 238-263 mm of arm within 3 cm of the hem's plane on the default female body (and as much on
+# MakeHuman's own). Going round the arm 2 mm clear needs >= 17 % strain there, beyond the 10 % bar: the
+# asset cannot meet it with its own rest lengths (the note of issue 3 has the measurement).
+_SLEEVE_HEM = pytest.mark.xfail(reason="female suit sleeve hems (214/225 mm) are smaller than the arm (>= 238 mm): "
+                                       ">= 17 % strain needed, bar 10 %", strict=True)
 
 
 @needs_shared
 @pytest.mark.parametrize("name, delta_cm", [
     ("male_casualsuit02", -5.0),
     ("male_casualsuit06", 0.0),
-    pytest.param("female_sportsuit01", 0.0, marks=_ARMPIT),
-    ("male_casualsuit02", 5.0),  # the waistband pins are refitted evenly on the wider waist
+    pytest.param("female_sportsuit01", 0.0, marks=_SLEEVE_HEM),
+    ("male_casualsuit02", 5.0),
+    ("male_casualsuit06", 5.0),
 ])
 def test_shared_garment_quality(morpher, name, delta_cm):
-    """Acceptance: converged, finite, nothing deeper than 2 mm, <= 0.5 % inside, strain p99 <= 5 %, max <= 10 %."""
-    from vfit_engine.body.model import N_BODY
+    """Acceptance: converged, finite, nothing deeper than 2 mm, <= 0.5 % inside, strain p99 <= 5 %, max <= 10 %.
+
+    As ``vfit drape`` does by default: the garment is transferred to the body (mhclo-delta) and
+    graded there (rest lengths of the transferred garment).
+    """
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.mhclo import parse_mhclo
     from vfit_engine.sim.drape import drape_garment
 
     g = load_garment(GARMENTS / name / f"{name}.obj")
-    gender = parse_mhclo(g.mhclo_path).gender
-    ref = morpher.model.default_verts(gender)
+    binding = parse_mhclo(g.mhclo_path)
+    ref = morpher.model.default_verts(binding.gender)
     body = ref
     if delta_cm:
         start = morpher.measurer.measure(ref, "iso").cm()
         body = morpher.solve({"waist": (start["waist"] + delta_cm) / 100, "hips": (start["hips"] + delta_cm) / 100},
-                             gender=gender).verts
-    res = drape_garment(g.mesh, g.pieces, body[:N_BODY], ref[:N_BODY], morpher.model.body_tris)
+                             gender=binding.gender).verts
+    res = drape_garment(g.mesh, g.pieces, body, ref, morpher.model.body_tris, transfer="auto", mhclo=binding,
+                        rest="transferred")
     m = res.metrics
     assert res.converged and m["finite"]
     assert m["deep_count"] == 0 and m["inside_fraction"] <= 0.005
     assert m["p99_strain"] <= 0.05 and m["max_strain"] <= 0.10
+    if delta_cm > 0:
+        # graded to a wider body: the garment as given would be stretched
+        assert m["garment_strain"]["p99"] > m["p99_strain"]
+
+
+def test_rest_transferred_grades_the_garment(female):
+    """rest="transferred": the cloth starts unstretched on a bigger body; against the garment it is stretched."""
+    from vfit_engine.sim.drape import DrapeSettings, drape_garment
+
+    tris = female["tris"]
+    mesh = skirt_mesh(female["body"], tris, around=16, rows=3)
+    centre = female["body"].mean(axis=0)
+    big = centre + 1.08 * (female["body"] - centre)
+    st = DrapeSettings(max_frames=1)
+    graded = drape_garment(mesh, None, big, female["body"], tris, settings=st, transfer="dqs", rest="transferred")
+    fixed = drape_garment(mesh, None, big, female["body"], tris, settings=st, transfer="none", rest="transferred")
+    assert graded.settings["transfer"]["rest"] == "transferred" and graded.settings["transfer"]["pin_gap_mm"]["max"] < 1e-6
+    # one frame after a start at rest: within the strain limit; the same positions against the garment: stretched
+    assert graded.metrics["max_strain"] < 0.03 and graded.metrics["garment_strain"]["p99"] > 0.04
+    # nothing transferred: the rest lengths are the garment's, and so is the strain metric
+    assert fixed.metrics["p99_strain"] == pytest.approx(fixed.metrics["garment_strain"]["p99"], rel=1e-9)
+    with pytest.raises(InputError, match="rest"):
+        drape_garment(mesh, None, big, female["body"], tris, settings=st, transfer="dqs", rest="pattern")
 
 
 def test_transfer_is_the_identity_on_the_same_body(female):

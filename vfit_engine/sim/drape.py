@@ -129,6 +129,9 @@ class DrapeSettings:
     untangle_strain : float;  untangle_iterations : int
     contact_damping : float, 1/s
         Decay rate of the tangential velocity of cloth the body pushes (mesh collider).
+    contact_reuse : float, m
+        A particle in contact that moved less than this since its last exact body query keeps
+        that query's tangent plane (:mod:`vfit_engine.kernels.drape_step`); 0 queries every substep.
     pin_strain : float
         A pin whose garment edge to another pin would be stretched more than this on the
         target body is released (:func:`drape_garment`).
@@ -144,7 +147,7 @@ class DrapeSettings:
     strain_cap: float = 0.015
     strain_iterations: int = 10
     strain_relaxation: float = 1.5
-    air_damping: float = 2.0
+    air_damping: float = 5.0
     skin: float = 0.002
     friction: float = 0.8
     push_start: float = 0.0002
@@ -160,8 +163,9 @@ class DrapeSettings:
     sphere_skin: float = 0.02
     untangle: bool = True
     untangle_strain: float = 0.08
-    untangle_iterations: int = 150
+    untangle_iterations: int = 60
     contact_damping: float = 60.0
+    contact_reuse: float = 0.0005
 
     def __post_init__(self):
         if not 0.0 < self.settle_quantile <= 1.0:
@@ -191,8 +195,9 @@ class _RampedMesh:
     :meth:`project` is the stand-alone projection for other callers.
     """
 
-    def __init__(self, mesh, max_push, reach=0.002, damping=0.0):
+    def __init__(self, mesh, max_push, reach=0.002, damping=0.0, reuse=0.0):
         self.mesh = mesh
+        self.reuse = float(reuse)
         self.damping = float(damping)
         self.max_push = float(max_push)
         self.reach = float(reach)
@@ -351,7 +356,7 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
         body_collider = MeshCollider(body_verts, body_tris, skin=st.skin, friction=st.friction)
     else:
         body_collider.skin, body_collider.friction = float(st.skin), float(st.friction)
-    ramped = _RampedMesh(body_collider, st.push_start, damping=st.contact_damping)
+    ramped = _RampedMesh(body_collider, st.push_start, damping=st.contact_damping, reuse=st.contact_reuse)
     if collider == "mesh":
         colliders = [ramped]
     elif collider == "spheres":
@@ -450,6 +455,33 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     )
 
 
+def edge_strain(face_verts, face_offsets, rest_pos, pos):
+    """Strain ``l / l0 - 1`` of the polygon edges of ``pos`` against ``rest_pos``.
+
+    Parameters
+    ----------
+    face_verts : (k,) int64;  face_offsets : (m + 1,) int64
+    rest_pos, pos : (n, 3) float64, m
+
+    Returns
+    -------
+    dict
+        ``max`` and ``p99`` (fractions) over the unique edges.
+    """
+    fv = np.asarray(face_verts, dtype=np.int64)
+    fo = np.asarray(face_offsets, dtype=np.int64)
+    sizes = np.diff(fo)
+    face_of = np.repeat(np.arange(sizes.size), sizes)
+    nxt = fv[fo[face_of] + (np.arange(fv.size) - fo[face_of] + 1) % sizes[face_of]]
+    edges = np.unique(np.sort(np.stack([fv, nxt], axis=1), axis=1), axis=0)
+    l0 = np.linalg.norm(rest_pos[edges[:, 1]] - rest_pos[edges[:, 0]], axis=1)
+    ok = l0 > 0
+    strain = np.linalg.norm(pos[edges[ok, 1]] - pos[edges[ok, 0]], axis=1) / l0[ok] - 1.0
+    if not strain.size:
+        return dict(max=0.0, p99=0.0)
+    return dict(max=float(strain.max()), p99=float(np.percentile(strain, 99)))
+
+
 def read_pin_file(path, vertex_count):
     """Garment vertex indices (0-based, one per line; blank lines and ``#`` comments skipped).
 
@@ -481,7 +513,7 @@ def read_pin_file(path, vertex_count):
 
 def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, material="cotton", pin="auto",
                   collider="mesh", settings=None, body_collider=None, on_frame=None, transfer="none", mhclo=None,
-                  start_verts=None):
+                  start_verts=None, rest="garment"):
     """Pick and attach pins, then :func:`drape` a garment on a body.
 
     Parameters
@@ -508,6 +540,12 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         The garment's binding, for the mhclo methods.
     start_verts : (n, 3) float64 m or None
         An already transferred start (then ``transfer`` is not applied).
+    rest : {"garment", "transferred"}
+        Where the cloth's rest lengths come from when it starts transferred: the garment as given
+        (a fixed-size garment put on a body of another size is stretched or loose), or the
+        transferred garment (the garment graded to the body, as MakeHuman refits clothes to every
+        body through their .mhclo; pins are then attached on ``body_verts`` itself). Either way
+        ``metrics['garment_strain']`` gives the strain against the garment as given.
 
     Returns
     -------
@@ -527,6 +565,13 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         start, tinfo = transfer_garment(garment_mesh.verts, reference_verts, body_verts, body_tris, transfer, mhclo)
     else:
         start, tinfo = None, dict(requested="none", method="none", time_s=0.0)
+    if rest not in ("garment", "transferred"):
+        raise InputError(f"unknown rest shape {rest!r}; use garment or transferred")
+    tinfo["rest"] = rest
+    given_mesh = garment_mesh
+    if rest == "transferred" and start is not None:
+        # the transferred garment is the cloth's pattern on this body: it starts at rest there
+        garment_mesh, reference_verts, start = garment_mesh.with_verts(start), body_verts, None
     if np.size(body_tris) and int(np.max(body_tris)) < _HM08_BODY:
         # hm08's helper vertices (19,158 in all) serve the transfer only; the drape sees the skin
         if np.shape(body_verts)[0] == _HM08_ALL:
@@ -579,6 +624,9 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         exc.transfer = tinfo
         raise
     res.settings["transfer"] = tinfo
+    if res.metrics.get("finite"):
+        res.metrics["garment_strain"] = edge_strain(given_mesh.face_verts, given_mesh.face_offsets, given_mesh.verts,
+                                                    res.pos)
     res.settings["pins"] = dict(
         mode=pin if isinstance(pin, str) else "file", count=int(idx.size), dropped_inside=dropped,
         **fit,

@@ -31,7 +31,9 @@ def drape_report(result=None, diverged=None, **context):
     Returns
     -------
     dict
-        Lengths in the mesh outputs are metres; depths in mm; strains as fractions (0.05 = 5 %).
+        Lengths in the mesh outputs are metres; depths in mm; strains as fractions (0.05 = 5 %):
+        ``max_strain`` / ``p99_strain`` against the cloth's rest lengths (the transferred garment with
+        ``rest="transferred"``), ``garment_max_strain`` / ``garment_p99_strain`` against the garment as given.
     """
     out = {"command": "drape", "units": {"mesh": "m", "up": "Y", "depth": "mm", "strain": "fraction",
                                          "time": "s"}}
@@ -58,6 +60,8 @@ def drape_report(result=None, diverged=None, **context):
         max_strain=m.get("max_strain"),
         p99_strain=m.get("p99_strain"),
         strain_edges="structural",
+        garment_max_strain=m.get("garment_strain", {}).get("max"),
+        garment_p99_strain=m.get("garment_strain", {}).get("p99"),
         softened_spring_fraction=result.softened_fraction,
         settings=result.settings,
     )

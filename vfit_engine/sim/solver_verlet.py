@@ -303,6 +303,7 @@ class SolverVerlet:
             self._x_last = np.zeros((n, 3))
             self._d_last = np.full(n, -np.inf)
             self._c_n = np.zeros((n, 3))
+            self._c_nq = np.zeros(n)
             self._c_h = np.zeros(n)
             self._c_push = np.zeros(n)
             self._c_list = np.zeros(n, dtype=np.int64)
@@ -315,7 +316,8 @@ class SolverVerlet:
             self._k, self._kd, self._lim_i, self._lim_j, self._lim_len, int(st.strain_limit_iterations),
             float(st.strain_limit_relaxation), pin_idx, pin_from, pin_to, dt, self._c_air, 0, n_sub, n_sub,
             *mesh_args, float(skin), float(reach), float(friction), float(max_push),
-            1.0 - math.exp(-float(contact_damping) * dt), self._x_last, self._d_last, self._c_n, self._c_h, self._c_push, self._c_list, self._f)
+            1.0 - math.exp(-float(contact_damping) * dt), float(getattr(coll, "reuse", 0.0)),
+            self._x_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_push, self._c_list, self._f)
 
     # -- diagnostics -------------------------------------------------------------
     def max_stretch(self, state, spring_type=0):
