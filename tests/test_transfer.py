@@ -327,3 +327,28 @@ def test_deterministic(female, body_model, cloud):
     a = transfer(cloud, female, wide, method="dqs", model=body_model)
     b = transfer(cloud, female, wide, method="dqs", model=body_model)
     assert a.tobytes() == b.tobytes()
+
+
+def test_restore_clearance_gives_back_lost_clearance(female, body_model):
+    """A garment 3 mm off the body, carried unchanged onto a body grown 5 mm outward, is put back
+    3 mm off it; onto a body shrunk 5 mm nothing moves (clearance is only ever restored outward)."""
+    from vfit_engine.collide.body_mesh import MeshCollider, mesh_normals
+    from vfit_engine.garment.transfer import restore_clearance
+
+    body, tris = female[:N_BODY], body_model.body_tris
+    normals = mesh_normals(body, tris)[3]
+    rng = np.random.default_rng(3)
+    k = rng.choice(N_BODY, 1500, replace=False)
+    garment = body[k] + 0.003 * normals[k]
+    for grow, moved in ((0.005, True), (-0.005, False)):
+        target = body + grow * normals
+        out, restored = restore_clearance(garment, garment, body, target, tris)
+        if moved:
+            # exact on smooth skin; fingers, ears and creases (where the grown body's normals turn or a
+            # point's nearest vertex changes) get part of it
+            assert abs(np.median(restored) - 0.005) < 1e-5 and np.mean(np.abs(restored - 0.005) < 5e-4) > 0.95
+            assert restored.max() < 0.0055
+            d = MeshCollider(target, tris).query(out, max_out=0.05, max_in=0.05)[0]
+            assert np.median(np.abs(d - 0.003)) < 5e-4 and np.all(d > 0)
+        else:
+            assert np.all(restored == 0) and np.array_equal(out, garment)

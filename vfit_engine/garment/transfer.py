@@ -268,7 +268,54 @@ def transfer(garment_verts, source_body, target_body, method="auto", k=DEFAULT_K
     return frames.transfer(pts, dst, method=method, k=int(k))
 
 
-def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, method="auto", mhclo=None):
+def restore_clearance(garment_verts, moved_verts, reference_verts, body_verts, body_tris, band=0.03):
+    """Give each moved garment vertex back the clearance it had from the source body, where it lost some.
+
+    A transfer carries a garment vertex with the body vertices it is bound to, but where the body
+    changes shape (a fuller upper arm next to a held girth) the garment can end deeper inside the
+    new body than it was in the old one, and the drape must then stretch it out. Here the clearance
+    of garment vertex i is measured against its nearest body vertex k on the source body,
+    ``d = (x - v_k) . n_k`` (n the vertex normal), and the same vertex k on the target body;
+    a vertex that lost clearance (``d_target < d_source``) is moved out along the target normal by
+    the loss. Only vertices within ``band`` of the source body are touched, and only outward.
+
+    Parameters
+    ----------
+    garment_verts : (n, 3) float64, m
+        The garment on the source body.
+    moved_verts : (n, 3) float64, m
+        The same garment after the transfer.
+    reference_verts, body_verts : (N, 3) float64, m
+        Source and target bodies (hm08 topology; the first 13,380 vertices are used).
+    body_tris : (T, 3) int64
+    band : float, m
+
+    Returns
+    -------
+    out : (n, 3) float64, m
+    restored : (n,) float64, m
+        Distance each vertex was moved out.
+    """
+    from scipy.spatial import cKDTree
+
+    from vfit_engine.collide.body_mesh import mesh_normals
+
+    ref = np.ascontiguousarray(reference_verts[:N_BODY], dtype=np.float64)
+    body = np.ascontiguousarray(body_verts[:N_BODY], dtype=np.float64)
+    src = np.asarray(garment_verts, dtype=np.float64)
+    out = np.array(moved_verts, dtype=np.float64)
+    dist, k = cKDTree(ref).query(src)
+    n_src = mesh_normals(ref, body_tris)[3][k]
+    n_dst = mesh_normals(body, body_tris)[3][k]
+    d_src = np.einsum("ij,ij->i", src - ref[k], n_src)
+    d_dst = np.einsum("ij,ij->i", out - body[k], n_dst)
+    restored = np.where(dist < band, np.maximum(d_src - d_dst, 0.0), 0.0)
+    out += restored[:, None] * n_dst
+    return out, restored
+
+
+def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, method="auto", mhclo=None,
+                     clearance=True):
     """Move a garment from the body it was modelled on to the body it will be draped on.
 
     Parameters
@@ -282,13 +329,16 @@ def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, meth
         :func:`vfit_engine.garment.transfer.transfer`; ``auto`` is ``mhclo-delta`` when a binding is
         given and both bodies have the helper vertices it reads, else ``dqs``.
     mhclo : MhcloBinding or None
+    clearance : bool
+        After a transfer to another body, :func:`restore_clearance` (skipped for the identity).
 
     Returns
     -------
     verts : (n, 3) float64, m
     info : dict
         ``requested``, ``method`` used, ``identity`` (same body: every method but mhclo is the
-        identity and is not evaluated), ``time_s``, ``max_move_mm``, ``mean_move_mm``.
+        identity and is not evaluated), ``time_s``, ``max_move_mm``, ``mean_move_mm``,
+        ``clearance_restored_mm`` (max and mean over the vertices moved out; None when skipped).
     """
     import time
 
@@ -310,6 +360,13 @@ def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, meth
         out = BodyFrames(ref, body_tris).transfer(pts, body, method=used)
     else:
         out = transfer(pts, ref, body, method=used, mhclo=mhclo)
+    restored_mm = None
+    if clearance and not identity and used != "none" and pts.size:
+        out, restored = restore_clearance(pts, out, ref, body, body_tris)
+        hit = restored > 0
+        restored_mm = dict(max=1000.0 * float(restored.max()), mean=1000.0 * float(restored[hit].mean()) if hit.any()
+                           else 0.0, vertices=int(hit.sum()))
     move = np.linalg.norm(out - pts, axis=1) if pts.size else np.zeros(1)
     return out, dict(requested=method, method=used, identity=bool(identity), time_s=time.perf_counter() - t0,
-                     max_move_mm=1000.0 * float(move.max()), mean_move_mm=1000.0 * float(move.mean()))
+                     max_move_mm=1000.0 * float(move.max()), mean_move_mm=1000.0 * float(move.mean()),
+                     clearance_restored_mm=restored_mm)
