@@ -338,17 +338,22 @@ def test_restore_clearance_gives_back_lost_clearance(female, body_model):
     body, tris = female[:N_BODY], body_model.body_tris
     normals = mesh_normals(body, tris)[3]
     rng = np.random.default_rng(3)
-    k = rng.choice(N_BODY, 1500, replace=False)
+    # the torso: grown 5 mm outward, fingers and toes would run into each other
+    torso = np.flatnonzero((body[:, 1] > -0.1) & (body[:, 1] < 0.4) & (np.abs(body[:, 0]) < 0.14))
+    k = rng.choice(torso, 800, replace=False)
     garment = body[k] + 0.003 * normals[k]
     for grow, moved in ((0.005, True), (-0.005, False)):
         target = body + grow * normals
         out, restored = restore_clearance(garment, garment, body, target, tris)
         if moved:
-            # exact on smooth skin; fingers, ears and creases (where the grown body's normals turn or a
-            # point's nearest vertex changes) get part of it
+            # exact on smooth skin; creases (where the grown body's normals turn or a point's nearest
+            # vertex changes) get part of it
             assert abs(np.median(restored) - 0.005) < 1e-5 and np.mean(np.abs(restored - 0.005) < 5e-4) > 0.95
             assert restored.max() < 0.0055
-            d = MeshCollider(target, tris).query(out, max_out=0.05, max_in=0.05)[0]
-            assert np.median(np.abs(d - 0.003)) < 5e-4 and np.all(d > 0)
+            col = MeshCollider(target, tris)
+            d = col.query(out, max_out=0.05, max_in=0.05)[0]
+            before = col.query(garment, max_out=0.05, max_in=0.05)[0]
+            # 3 mm off the grown body again (bar a few points in creases: under the bust, armpits)
+            assert np.median(np.abs(d - 0.003)) < 5e-4 and np.mean(d > 0) > 0.98 and np.mean(before > 0) < 0.1
         else:
             assert np.all(restored == 0) and np.array_equal(out, garment)
