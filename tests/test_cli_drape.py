@@ -190,3 +190,15 @@ def test_transfer_on_the_default_body_changes_nothing(tmp_path, skirt_file):
         assert report["transfer"]["method"] == method and report["transfer"]["identity"] is True
         finals.append((tmp_path / method / "final.obj").read_bytes())
     assert finals[0] == finals[1]
+
+
+@pytest.mark.parametrize("collider", ["ellipsoids", "hulls"])
+def test_fitted_colliders(tmp_path, skirt_file, collider):
+    """The shapes are fitted to the body's segmentation on the fly; their collision time is reported."""
+    out = tmp_path / collider
+    r = run(skirt_file, "--units", "m", "-o", out, "--collider", collider, "--frames", 3, "--every", 0, "-q")
+    assert r.exit_code == 3, r.output  # 3 frames: not settled, outputs written
+    report = json.loads((out / "report.json").read_text())
+    assert report["collider"] == collider and report["settings"]["collider"] == collider
+    assert report["collision_time_s"] > 0 and report["frames"] == 3
+    assert (out / "final.obj").is_file()

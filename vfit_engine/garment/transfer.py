@@ -277,7 +277,8 @@ def restore_clearance(garment_verts, moved_verts, reference_verts, body_verts, b
     of garment vertex i is measured against its nearest body vertex k on the source body,
     ``d = (x - v_k) . n_k`` (n the vertex normal), and the same vertex k on the target body;
     a vertex that lost clearance (``d_target < d_source``) is moved out along the target normal by
-    the loss. Only vertices within ``band`` of the source body are touched, and only outward.
+    the loss, at most by how far vertex k itself moved out. Only vertices within ``band`` of the
+    source body whose vertex normal turned by less than 60 degrees are touched, and only outward.
 
     Parameters
     ----------
@@ -309,7 +310,12 @@ def restore_clearance(garment_verts, moved_verts, reference_verts, body_verts, b
     n_dst = mesh_normals(body, body_tris)[3][k]
     d_src = np.einsum("ij,ij->i", src - ref[k], n_src)
     d_dst = np.einsum("ij,ij->i", out - body[k], n_dst)
-    restored = np.where(dist < band, np.maximum(d_src - d_dst, 0.0), 0.0)
+    # the garment cannot have lost more clearance than the skin under it advanced; the cap also
+    # keeps a point whose nearest vertex lies across a crease from being thrown out
+    advance = np.einsum("ij,ij->i", body[k] - ref[k], n_dst)
+    # where the skin turned over (a fold of the new body) the two distances do not compare
+    ok = (dist < band) & (np.einsum("ij,ij->i", n_src, n_dst) > 0.5)
+    restored = np.where(ok, np.clip(d_src - d_dst, 0.0, np.maximum(advance, 0.0)), 0.0)
     out += restored[:, None] * n_dst
     return out, restored
 

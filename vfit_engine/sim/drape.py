@@ -238,6 +238,66 @@ def _order_from_pins(solver, pin_idx, n):
     solver._lim_len = np.ascontiguousarray(solver._lim_len[order])
 
 
+#: Body colliders of :func:`drape`: the exact body mesh, or shapes fitted to the body.
+COLLIDERS = ("mesh", "spheres", "ellipsoids", "hulls")
+
+
+class _Timed:
+    """A fitted collider whose pushes are limited to ``max_push`` per substep (ramped by the frame
+    loop like the mesh collider's) and whose ``project`` time is summed (``seconds``).
+
+    Shapes fitted around the body overlap a garment made for it by centimetres at the start (an
+    ellipsoid bounds its part, so it stands off the skin); pushing all of that out in one substep
+    would stretch the springs around it and launch the cloth. The velocity the collider leaves
+    (its friction and restitution) is kept; only the position change is shortened.
+    """
+
+    def __init__(self, inner, max_push=math.inf):
+        self.inner = inner
+        self.max_push = float(max_push)
+        self.seconds = 0.0
+        self._before = None
+
+    def project(self, x, x_prev, inv_mass):
+        t0 = time.perf_counter()
+        if self._before is None or self._before.shape != x.shape:
+            self._before, self._len = np.empty_like(x), np.empty(x.shape[0])
+        before, length = self._before, self._len
+        np.copyto(before, x)
+        self.inner.project(x, x_prev, inv_mass)
+        # x_prev -= x, then x = before + scaled push, then x_prev += x: the velocity is unchanged
+        np.subtract(x_prev, x, out=x_prev)
+        np.subtract(x, before, out=x)
+        np.sqrt(np.einsum("ij,ij->i", x, x, out=length), out=length)
+        np.maximum(length, self.max_push, out=length)
+        np.divide(self.max_push, length, out=length)
+        x *= length[:, None]
+        x += before
+        np.add(x_prev, x, out=x_prev)
+        self.seconds += time.perf_counter() - t0
+
+
+def _fit_collider(kind, body_verts, body_tris, body_collider, segments, st):
+    """The approximate collider ``kind`` fitted to this body (nothing placed by hand)."""
+    if kind == "spheres":
+        from vfit_engine.collide.auto_spheres import fit_spheres
+        from vfit_engine.collide.spheres import SphereCollider
+
+        centres, radii = fit_spheres(body_verts, body_tris, body_collider)
+        return SphereCollider(centres, radii, skin=st.sphere_skin, friction=min(st.friction * 2, 1.0))
+    if segments is None:
+        raise InputError(f"the {kind} collider needs the body's segmentation")
+    labels, names = segments
+    labels = np.asarray(labels, dtype=np.int64)[:body_verts.shape[0]]
+    if kind == "ellipsoids":
+        from vfit_engine.collide.ellipsoids import fit_ellipsoids
+
+        return fit_ellipsoids(body_verts[:labels.size], labels, names, skin=st.sphere_skin / 2, friction=st.friction)
+    from vfit_engine.collide.hulls import fit_hulls
+
+    return fit_hulls(body_verts[:labels.size], labels, names, body_tris=body_tris, skin=st.skin, friction=st.friction)
+
+
 @dataclass
 class DrapeResult:
     """What a drape produced.
@@ -324,7 +384,7 @@ def drape_metrics(model, pos, body_collider):
 
 
 def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material="cotton", pins=None,
-          collider="mesh", settings=None, body_collider=None, on_frame=None, start_pos=None):
+          collider="mesh", settings=None, body_collider=None, on_frame=None, start_pos=None, segments=None):
     """Drape a garment on a body.
 
     Parameters
@@ -340,7 +400,8 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     material : str, Path or Material
     pins : (PinAttachment, (p, 3) float64 m) or None
         Attachment and the pins' targets on this body (:meth:`PinAttachment.positions`).
-    collider : {"mesh", "spheres"}
+    collider : {"mesh", "spheres", "ellipsoids", "hulls"}
+        The exact body, or shapes fitted to it (:data:`COLLIDERS`).
     settings : DrapeSettings or None
     body_collider : MeshCollider or None
         Reused if given (must be built on ``body_verts``; its skin/friction are overridden).
@@ -350,6 +411,9 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     start_pos : (n, 3) float64, m, or None
         Where the cloth starts (e.g. the garment transferred to this body, :func:`vfit_engine.garment.transfer.transfer_garment`);
         None: ``garment_pos``. The rest lengths stay those of ``garment_pos``.
+    segments : ((N,) int64, list of str) or None
+        Body part label of every body vertex and the part names
+        (:func:`vfit_engine.body.segment.segment`); needed by ``ellipsoids`` and ``hulls``.
 
     Returns
     -------
@@ -382,16 +446,14 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     else:
         body_collider.skin, body_collider.friction = float(st.skin), float(st.friction)
     ramped = _RampedMesh(body_collider, st.push_start, damping=st.contact_damping, reuse=st.contact_reuse)
+    timed = None
     if collider == "mesh":
         colliders = [ramped]
-    elif collider == "spheres":
-        from vfit_engine.collide.auto_spheres import fit_spheres
-        from vfit_engine.collide.spheres import SphereCollider
-
-        centres, radii = fit_spheres(body_verts, body_tris, body_collider)
-        colliders = [SphereCollider(centres, radii, skin=st.sphere_skin, friction=min(st.friction * 2, 1.0))]
+    elif collider in COLLIDERS:
+        timed = _Timed(_fit_collider(collider, body_verts, body_tris, body_collider, segments, st))
+        colliders = [timed]
     else:
-        raise InputError(f"unknown collider {collider!r}; use mesh or spheres")
+        raise InputError(f"unknown collider {collider!r}; use one of {', '.join(COLLIDERS)}")
     solver = SolverVerlet(model, vs, colliders)
     if pin_idx.size:
         _order_from_pins(solver, pin_idx, model.particle_count)
@@ -435,6 +497,8 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     for frame in range(1, int(st.max_frames) + 1):
         alpha = min(frame / ramp, 1.0)
         ramped.max_push = st.push_start + alpha * (st.push_end - st.push_start)
+        if timed is not None:
+            timed.max_push = ramped.max_push
         if pin_idx.size:
             np.subtract(pin_to, pin_from, out=pin_now)
             pin_now *= alpha
@@ -489,7 +553,7 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
                         frame_speed=frame_speed, frame_speed_quantile=frame_speed_q, window_speed=window_speed)
     return DrapeResult(
         pos=pos, frames=frame, steps=int(state.step_count), sim_time=float(state.time), wall_time=wall,
-        setup_time=setup_time, collide_time=ramped.seconds, converged=converged, max_speed=max_speed,
+        setup_time=setup_time, collide_time=ramped.seconds if timed is None else timed.seconds, converged=converged, max_speed=max_speed,
         metrics=drape_metrics(model, pos, body_collider), settings=settings_out,
         softened_fraction=solver.softened_fraction,
     )
@@ -553,7 +617,7 @@ def read_pin_file(path, vertex_count):
 
 def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, material="cotton", pin="auto",
                   collider="mesh", settings=None, body_collider=None, on_frame=None, transfer="none", mhclo=None,
-                  start_verts=None, rest="garment"):
+                  start_verts=None, rest="garment", segments=None):
     """Pick and attach pins, then :func:`drape` a garment on a body.
 
     Parameters
@@ -568,7 +632,7 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         The body the garment was modelled on (same topology): pins are bound to it and follow
         ``body_verts``. Pass ``body_verts`` when unknown.
     body_tris : (T, 3) int64
-    material, collider, settings, body_collider, on_frame
+    material, collider, settings, body_collider, on_frame, segments
         As in :func:`drape`.
     pin : "auto", "none" or (p,) int64
         ``auto``: :func:`vfit_engine.garment.pins.auto_pins` on ``body_verts``.
@@ -659,6 +723,7 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
     try:
         res = drape(garment_mesh.verts, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
                     material=material, pins=pins, collider=collider, settings=st, body_collider=body_collider,
+                    segments=segments,
                     on_frame=on_frame, start_pos=start)
     except DrapeDiverged as exc:
         exc.transfer = tinfo
