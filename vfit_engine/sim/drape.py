@@ -148,7 +148,7 @@ class DrapeSettings:
     substeps: int = 8
     strain_limit: float | None = None
     strain_cap: float = 0.015
-    strain_iterations: int = 10
+    strain_iterations: int = 14
     strain_relaxation: float = 1.0
     air_damping: float = 5.0
     skin: float = 0.002
