@@ -224,6 +224,11 @@ def drape(ctx, garment, body_path, material, collider, pin, transfer, rest, unit
         if transfer_info["rest"] == "transferred":
             click.echo(f"  against the garment as given (before grading to this body): strain p99 "
                        f"{100 * report['garment_p99_strain']:.2f} %, max {100 * report['garment_max_strain']:.2f} %")
+        for o in report["tight_openings"]:
+            x, y, z = (100 * c for c in o["centre_m"])
+            click.echo(f"  tight: the opening of {o['vertices']} vertices at ({x:.1f}, {y:.1f}, {z:.1f}) cm is "
+                       f"{o['rest_length_mm'] / 10:.1f} cm round, the body under it {o['body_tape_mm'] / 10:.1f} cm: "
+                       f"it must stretch >= {100 * o['required_strain']:.1f} %")
         click.echo(f"wrote {os.path.join(outdir, 'final' + ext)}, {body_file}, {os.path.join(outdir, 'report.json')}")
     if not result.converged:
         click.echo(f"Error: the cloth did not settle within {settings.max_frames} frames "

@@ -173,6 +173,9 @@ def test_transfer_dqs_to_a_body_file(tmp_path, skirt_file, body_model):
     # graded by default; a translation changes no length, so both strains agree
     assert t["rest"] == "transferred"
     assert report["garment_max_strain"] == pytest.approx(report["max_strain"], abs=1e-6)
+    # the skirt's waistband goes round the waist with room to spare
+    assert len(report["openings"]) >= 1 and report["tight_openings"] == []
+    assert all(o["body_tape_mm"] > 500 and o["required_strain"] < 0 for o in report["openings"])
     src, start, fin = (read_mesh(p) for p in (skirt_file, out / "frame_0000.obj", out / "final.obj"))
     assert np.allclose(start.verts, src.verts + shift, atol=1e-6)
     for m in (start, fin):

@@ -328,6 +328,10 @@ class DrapeResult:
         Share of springs the solver softened for stability.
     pin_indices : (p,) int64 or None;  pin_targets : (p, 3) float64 m or None
         Pinned vertices and where they end (set by :func:`drape_garment`).
+    openings : list of dict or None
+        The garment's openings against the body parts they go round, with the strain each
+        must take at least (:func:`vfit_engine.garment.openings.check_openings`; set by
+        :func:`drape_garment`).
     """
 
     pos: np.ndarray
@@ -344,6 +348,7 @@ class DrapeResult:
     softened_fraction: float = 0.0
     pin_indices: np.ndarray | None = None
     pin_targets: np.ndarray | None = None
+    openings: list | None = None
 
 
 def drape_metrics(model, pos, body_collider):
@@ -739,4 +744,10 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
                                           for p in info["pieces"]])
     res.pin_indices = idx
     res.pin_targets = None if pins is None else pins[1]
+    from vfit_engine.garment.openings import check_openings
+
+    # openings smaller than the body part they go round bound the strain from below (a garment
+    # authored too tight there cannot be put on without stretching them)
+    res.openings = check_openings(from_pos, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
+                                  skin=st.skin, rest_pos=garment_mesh.verts)
     return res

@@ -33,7 +33,9 @@ def drape_report(result=None, diverged=None, **context):
     dict
         Lengths in the mesh outputs are metres; depths in mm; strains as fractions (0.05 = 5 %):
         ``max_strain`` / ``p99_strain`` against the cloth's rest lengths (the transferred garment with
-        ``rest="transferred"``), ``garment_max_strain`` / ``garment_p99_strain`` against the garment as given.
+        ``rest="transferred"``), ``garment_max_strain`` / ``garment_p99_strain`` against the garment as given;
+        ``tight_openings``: openings smaller than the body part they go round, whose
+        ``required_strain`` bounds the strain from below.
     """
     out = {"command": "drape", "units": {"mesh": "m", "up": "Y", "depth": "mm", "strain": "fraction",
                                          "time": "s"}}
@@ -63,6 +65,8 @@ def drape_report(result=None, diverged=None, **context):
         garment_max_strain=m.get("garment_strain", {}).get("max"),
         garment_p99_strain=m.get("garment_strain", {}).get("p99"),
         softened_spring_fraction=result.softened_fraction,
+        openings=result.openings,
+        tight_openings=[o for o in (result.openings or []) if o["required_strain"] > 0],
         settings=result.settings,
     )
     return _clean(out)

@@ -1,0 +1,77 @@
+"""Garment openings against the body part they go round (a cylinder 'arm' with a tube 'sleeve')."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from vfit_engine.garment.openings import boundary_loops, check_openings
+from vfit_engine.garment.springs import grid_polygons
+
+GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
+
+
+def tube(radius, around=48, rows=3, height=0.06, tilt=0.0):
+    """An open quad tube round the y axis (two boundary loops), optionally tilted about z."""
+    a = 2 * math.pi * np.arange(around) / around
+    ys = np.linspace(-height / 2, height / 2, rows)
+    pos = np.array([[radius * math.cos(t), y, radius * math.sin(t)] for y in ys for t in a])
+    c, s = math.cos(tilt), math.sin(tilt)
+    pos = pos @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T
+    faces = [[r * around + i, r * around + (i + 1) % around, (r + 1) * around + (i + 1) % around,
+              (r + 1) * around + i] for r in range(rows - 1) for i in range(around)]
+    fv = np.array(faces, dtype=np.int64).ravel()
+    return pos, fv, np.arange(0, fv.size + 1, 4)
+
+
+@pytest.fixture(scope="module")
+def arm():
+    m = trimesh.creation.cylinder(radius=0.05, height=0.5, sections=128)  # along z
+    turn = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])  # a rotation taking it along y
+    return np.asarray(m.vertices, dtype=np.float64) @ turn.T, np.asarray(m.faces, dtype=np.int64)
+
+
+def test_boundary_loops_of_a_grid_and_a_tube():
+    pos, fv, fo = grid_polygons(5, 4)
+    (loop,) = boundary_loops(fv, fo)
+    assert loop.size == 2 * (5 + 4) - 4
+    pos, fv, fo = tube(0.04)
+    loops = boundary_loops(fv, fo)
+    assert sorted(len(lp) for lp in loops) == [48, 48]
+
+
+@pytest.mark.parametrize("radius, tilt", [(0.045, 0.0), (0.045, 0.3), (0.06, 0.0)])
+def test_sleeve_on_a_cylinder(arm, radius, tilt):
+    verts, tris = arm
+    pos, fv, fo = tube(radius, tilt=tilt)
+    found = check_openings(pos, fv, fo, verts, tris, skin=0.002)
+    assert len(found) == 2
+    length = 48 * 2 * radius * math.sin(math.pi / 48)
+    # the fitted plane is perpendicular to the tilted tube: the arm's section there is an ellipse,
+    # whose smallest tape over the plane offsets is still >= the straight section's
+    for o in found:
+        assert o["rest_length_mm"] == pytest.approx(1000 * length, rel=1e-9)
+        assert o["body_tape_mm"] >= 1000 * 2 * 128 * 0.05 * math.sin(math.pi / 128) * (1 - 1e-9)
+        if tilt == 0:
+            assert o["body_tape_mm"] == pytest.approx(1000 * 2 * 128 * 0.05 * math.sin(math.pi / 128), rel=1e-6)
+            need = (2 * 128 * 0.05 * math.sin(math.pi / 128) + 2 * math.pi * 0.002) / length - 1
+            assert o["required_strain"] == pytest.approx(need, rel=1e-6)
+        assert (o["required_strain"] > 0) == (radius < 0.05)
+
+
+@pytest.mark.skipif(not GARMENTS.is_dir(), reason="../shared not present")
+def test_female_suit_sleeves_are_smaller_than_the_arm(body_model):
+    """The measurement behind the female suits' drape results: their short-sleeve hems must stretch
+    more than the 10 % strain bar on the default female body, whatever the drape does."""
+    from vfit_engine.body.model import N_BODY
+    from vfit_engine.garment.garment import load_garment
+
+    body = body_model.default_verts("female")[:N_BODY]
+    for name in ("female_casualsuit01", "female_sportsuit01"):
+        g = load_garment(GARMENTS / name / f"{name}.obj")
+        found = check_openings(g.mesh.verts, g.mesh.face_verts, g.mesh.face_offsets, body, body_model.body_tris)
+        tight = [o for o in found if o["required_strain"] > 0]
+        assert len(tight) == 2 and all(o["vertices"] == 21 for o in tight)  # the two sleeve hems
+        assert min(o["required_strain"] for o in tight) > 0.10
+        assert all(abs(abs(o["centre_m"][0]) - 0.24) < 0.01 for o in tight)  # at the upper arms
