@@ -46,11 +46,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--garment", action="append", help="garment name(s) (default: all)")
     ap.add_argument("--material", default="cotton")
-    ap.add_argument("--transfer", default="none",
+    ap.add_argument("--transfer", default="auto",
                     choices=("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none"),
-                    help="garment transfer to the case body before the drape (default: none)")
-    ap.add_argument("--rest", default="garment", choices=("garment", "transferred"),
-                    help="rest lengths of the cloth after a transfer (default: garment = as given)")
+                    help="garment transfer to the case body before the drape (default: auto, as vfit drape)")
+    ap.add_argument("--rest", default="transferred", choices=("garment", "transferred"),
+                    help="rest lengths of the cloth after a transfer (default: transferred, as vfit drape)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args(argv)
     if not GARMENTS.is_dir():

@@ -88,6 +88,27 @@ def test_limiter_sweeps_from_the_pins():
     assert worst[0] < 0.9 * worst[1]
 
 
+def test_stretch_zone_raises_the_limit_near_the_opening_only():
+    """A too-small opening may stretch by its required strain, and so may the cloth within the zone
+    width of it (along the cloth); the rest keeps its limit."""
+    from vfit_engine.garment.springs import grid_polygons
+    from vfit_engine.sim.drape import _relax_zone
+    from vfit_engine.sim.materials import resolve_material
+    from vfit_engine.sim.model import Model
+    from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
+
+    pos, fv, fo = grid_polygons(5, 21, 0.2, 0.2)  # rows 1 cm apart along z
+    model = Model.from_polygons(fv, fo, pos, resolve_material("cotton"))
+    solver = SolverVerlet(model, VerletSettings(strain_limit=0.015))
+    before = solver._lim_len.copy()
+    edge = np.flatnonzero(pos[:, 2] == pos[:, 2].min())  # the 'opening': one boundary row
+    _relax_zone(solver, model, edge, 0.12, 0.015, 0.03)
+    far = np.maximum(pos[solver._lim_i, 2], pos[solver._lim_j, 2]) - pos[:, 2].min()
+    ratio = solver._lim_len / before
+    assert np.allclose(ratio[far <= 0.03 + 1e-9], 1.12 / 1.015)  # rows 0-3: within 3 cm
+    assert np.all(ratio[far > 0.03 + 1e-9] == 1.0)
+
+
 def test_drape_is_deterministic(female, skirt_run):
     from vfit_engine.sim.drape import DrapeSettings, drape_garment
 

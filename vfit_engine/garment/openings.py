@@ -109,9 +109,9 @@ def check_openings(garment_pos, face_verts, face_offsets, body_verts, body_tris,
     Returns
     -------
     list of dict
-        One per opening that encircles a body part: ``vertices`` (count), ``centre_m`` (3,),
-        ``rest_length_mm``, ``body_tape_mm`` (smallest over ``offsets``), ``required_strain``
-        (fraction, <= 0 when the opening fits).
+        One per opening that encircles a body part: ``indices`` ((L,) int64, the loop),
+        ``vertices`` (count), ``centre_m`` (3,), ``rest_length_mm``, ``body_tape_mm`` (smallest over
+        ``offsets``), ``required_strain`` (fraction, <= 0 when the opening fits).
     """
     from vfit_engine.section import MeshSections
 
@@ -147,6 +147,6 @@ def check_openings(garment_pos, face_verts, face_offsets, body_verts, body_tris,
         tape = min(tapes)
         length = float(np.linalg.norm(rest[loop] - np.roll(rest[loop], -1, axis=0), axis=1).sum())
         need = (tape + 2.0 * np.pi * skin) / length - 1.0 if length > 0 else 0.0
-        out.append(dict(vertices=int(loop.size), centre_m=[float(v) for v in centre],
+        out.append(dict(indices=loop, vertices=int(loop.size), centre_m=[float(v) for v in centre],
                         rest_length_mm=1000.0 * length, body_tape_mm=1000.0 * tape, required_strain=float(need)))
     return out

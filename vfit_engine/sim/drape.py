@@ -132,6 +132,9 @@ class DrapeSettings:
     untangle_strain : float;  untangle_iterations : int
     contact_damping : float, 1/s
         Decay rate of the tangential velocity of cloth the body pushes (mesh collider).
+    stretch_zone : float, m
+        Width of the cloth round a too-small opening whose strain limit is raised
+        (``stretch_zones`` of :func:`drape`).
     contact_reuse : float, m
         A particle in contact that moved less than this since its last exact body query keeps
         that query's tangent plane (:mod:`vfit_engine.kernels.drape_step`); 0 queries every substep.
@@ -169,6 +172,7 @@ class DrapeSettings:
     untangle_iterations: int = 60
     contact_damping: float = 60.0
     contact_reuse: float = 0.0005
+    stretch_zone: float = 0.03
 
     def __post_init__(self):
         if not 0.0 < self.settle_quantile <= 1.0:
@@ -214,6 +218,24 @@ class _RampedMesh:
         t0 = time.perf_counter()
         self.mesh.project(x, x_prev, inv_mass, max_push=self.max_push)
         self.seconds += time.perf_counter() - t0
+
+
+def _relax_zone(solver, model, loop, strain, limit, width):
+    """Let the cloth within ``width`` (m, along its rest edges) of ``loop`` stretch by ``strain``."""
+    from scipy import sparse
+    from scipy.sparse.csgraph import dijkstra
+
+    from vfit_engine.garment.springs import STRUCTURAL
+
+    n = model.particle_count
+    st_i = model.spring_indices[model.spring_type == STRUCTURAL]
+    w = model.spring_rest[model.spring_type == STRUCTURAL]
+    graph = sparse.coo_matrix((w, (st_i[:, 0], st_i[:, 1])), shape=(n, n)).tocsr()
+    dist = dijkstra(graph, directed=False, indices=np.asarray(loop), limit=width, min_only=True)
+    zone = np.isfinite(dist)
+    inside = zone[solver._lim_i] & zone[solver._lim_j]
+    factor = (1.0 + strain) / (1.0 + limit)
+    solver._lim_len[inside] = np.maximum(solver._lim_len[inside], solver._lim_len[inside] * factor)
 
 
 def _order_from_pins(solver, pin_idx, n):
@@ -389,7 +411,8 @@ def drape_metrics(model, pos, body_collider):
 
 
 def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material="cotton", pins=None,
-          collider="mesh", settings=None, body_collider=None, on_frame=None, start_pos=None, segments=None):
+          collider="mesh", settings=None, body_collider=None, on_frame=None, start_pos=None, segments=None,
+          stretch_zones=None):
     """Drape a garment on a body.
 
     Parameters
@@ -419,6 +442,11 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     segments : ((N,) int64, list of str) or None
         Body part label of every body vertex and the part names
         (:func:`vfit_engine.body.segment.segment`); needed by ``ellipsoids`` and ``hulls``.
+    stretch_zones : list of ((L,) int64, float) or None
+        Openings that must stretch by at least the given strain to go round the body
+        (:func:`vfit_engine.garment.openings.check_openings`): the strain limit of the cloth within
+        ``st.stretch_zone`` of each is raised to that strain, so the opening stretches evenly
+        instead of the limiter tearing one edge open.
 
     Returns
     -------
@@ -462,6 +490,8 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     solver = SolverVerlet(model, vs, colliders)
     if pin_idx.size:
         _order_from_pins(solver, pin_idx, model.particle_count)
+    for loop, strain in stretch_zones or ():
+        _relax_zone(solver, model, loop, strain, limit, st.stretch_zone)
     frame_dt = 1.0 / st.fps
     dt = frame_dt / int(st.substeps)
     pin_to = np.zeros((0, 3)) if pins is None else np.ascontiguousarray(pins[1], dtype=np.float64)
@@ -725,10 +755,17 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
     if pins is not None:
         gap = 1000.0 * np.linalg.norm(from_pos[idx] - target, axis=1)
         tinfo["pin_gap_mm"] = dict(max=float(gap.max()), mean=float(gap.mean()))
+    from vfit_engine.garment.openings import check_openings
+
+    # openings smaller than the body part they go round bound the strain from below (a garment
+    # authored too tight there cannot be put on without stretching them): they stretch evenly
+    openings = check_openings(from_pos, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
+                              skin=st.skin, rest_pos=garment_mesh.verts)
+    zones = [(o["indices"], o["required_strain"]) for o in openings if o["required_strain"] > 0]
     try:
         res = drape(garment_mesh.verts, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
                     material=material, pins=pins, collider=collider, settings=st, body_collider=body_collider,
-                    segments=segments,
+                    segments=segments, stretch_zones=zones,
                     on_frame=on_frame, start_pos=start)
     except DrapeDiverged as exc:
         exc.transfer = tinfo
@@ -744,10 +781,5 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
                                           for p in info["pieces"]])
     res.pin_indices = idx
     res.pin_targets = None if pins is None else pins[1]
-    from vfit_engine.garment.openings import check_openings
-
-    # openings smaller than the body part they go round bound the strain from below (a garment
-    # authored too tight there cannot be put on without stretching them)
-    res.openings = check_openings(from_pos, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
-                                  skin=st.skin, rest_pos=garment_mesh.verts)
+    res.openings = openings
     return res

@@ -45,6 +45,7 @@ def drape_report(result=None, diverged=None, **context):
                    last_good_frame=diverged.last_good_frame)
         return _clean(out)
     m = result.metrics
+    openings = [{k: v for k, v in o.items() if k != "indices"} for o in (result.openings or [])]
     out.update(
         diverged=False,
         converged=bool(result.converged),
@@ -65,8 +66,8 @@ def drape_report(result=None, diverged=None, **context):
         garment_max_strain=m.get("garment_strain", {}).get("max"),
         garment_p99_strain=m.get("garment_strain", {}).get("p99"),
         softened_spring_fraction=result.softened_fraction,
-        openings=result.openings,
-        tight_openings=[o for o in (result.openings or []) if o["required_strain"] > 0],
+        openings=openings,
+        tight_openings=[o for o in openings if o["required_strain"] > 0],
         settings=result.settings,
     )
     return _clean(out)
