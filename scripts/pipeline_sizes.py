@@ -30,12 +30,6 @@ SIZES = {
 }
 
 
-def passes(r):
-    m = r.metrics
-    return (r.converged and m["finite"] and m["deep_count"] == 0 and m["inside_fraction"] <= 0.005
-            and m["p99_strain"] <= 0.05 and m["max_strain"] <= 0.10)
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--garment", action="append", help="garment name(s) (default: all)")
@@ -49,6 +43,7 @@ def main(argv=None):
         return 1
 
     from vfit_cli._common import fmt_table
+    from vfit_engine.sim.report import meets_bars as passes
     from vfit_engine.body.morph import Morpher
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.mhclo import parse_mhclo

@@ -53,6 +53,14 @@ def test_skirt_drape_invariants(female, skirt_run):
     assert res.steps == res.frames * st.substeps
     # settled: the fastest particle's mean speed over the last window is below the bar
     assert res.settings["window_speed"] < st.settle_max_speed
+    from dataclasses import replace
+
+    from vfit_engine.sim.report import meets_bars
+
+    assert meets_bars(res)
+    for key, bad in (("max_strain", 0.11), ("p99_strain", 0.051), ("deep_count", 1), ("inside_fraction", 0.006)):
+        assert not meets_bars(replace(res, metrics={**res.metrics, key: bad}))
+    assert not meets_bars(replace(res, converged=False))
 
 
 def test_limiter_sweeps_from_the_pins():

@@ -38,6 +38,7 @@ import math
 import numpy as np
 
 from vfit_engine._jit import njit
+from vfit_engine.kernels.collide_sphere import _place
 
 #: A candidate counts as inside another ellipsoid when that level is below 1 - LEVEL_TOL.
 LEVEL_TOL = 1e-12
@@ -363,22 +364,7 @@ def _project_particle(x, xp, i, c, rot, axes, bound2, friction, restitution, clo
         hit = last
         ql0, ql1, ql2 = _local(q0, q1, q2, c, rot, hit)
     n0, n1, n2 = _normal(ql0, ql1, ql2, rot, axes, hit)
-    v0 = x[i, 0] - xp[i, 0]
-    v1 = x[i, 1] - xp[i, 1]
-    v2 = x[i, 2] - xp[i, 2]
-    vn = v0 * n0 + v1 * n1 + v2 * n2
-    t0 = v0 - vn * n0
-    t1 = v1 - vn * n1
-    t2 = v2 - vn * n2
-    if vn < 0.0:
-        vn = -restitution[hit] * vn
-    keep = 1.0 - friction[hit]
-    x[i, 0] = q0
-    x[i, 1] = q1
-    x[i, 2] = q2
-    xp[i, 0] = q0 - (keep * t0 + vn * n0)
-    xp[i, 1] = q1 - (keep * t1 + vn * n1)
-    xp[i, 2] = q2 - (keep * t2 + vn * n2)
+    _place(x, xp, i, q0, q1, q2, n0, n1, n2, friction[hit], restitution[hit])
     return True
 
 

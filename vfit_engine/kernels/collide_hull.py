@@ -45,6 +45,7 @@ import numpy as np
 
 from vfit_engine._jit import njit
 from vfit_engine.kernels.collide_mesh import _closest_on_triangle
+from vfit_engine.kernels.collide_sphere import _place
 
 #: A point counts as inside a shape when its depth is below -INSIDE_TOL (m): a particle just
 #: projected onto a face must not count as inside that face's hull through rounding.
@@ -271,22 +272,7 @@ def _project_particle(x, xp, i, normals, offsets, hull_start, hull_centres, hull
                     m2 = g2
     if best == np.inf:
         return
-    v0 = x[i, 0] - xp[i, 0]
-    v1 = x[i, 1] - xp[i, 1]
-    v2 = x[i, 2] - xp[i, 2]
-    vn = v0 * m0 + v1 * m1 + v2 * m2
-    t0 = v0 - vn * m0
-    t1 = v1 - vn * m1
-    t2 = v2 - vn * m2
-    if vn < 0.0:
-        vn = -restitution * vn
-    keep = 1.0 - friction
-    x[i, 0] = q0
-    x[i, 1] = q1
-    x[i, 2] = q2
-    xp[i, 0] = q0 - (keep * t0 + vn * m0)
-    xp[i, 1] = q1 - (keep * t1 + vn * m1)
-    xp[i, 2] = q2 - (keep * t2 + vn * m2)
+    _place(x, xp, i, q0, q1, q2, m0, m1, m2, friction, restitution)
 
 
 @njit

@@ -25,6 +25,29 @@ from vfit_engine._jit import njit
 
 
 @njit
+def _place(x, xp, i, q0, q1, q2, n0, n1, n2, friction, restitution):
+    """Move particle ``i`` to the surface point q with outward normal n; its Verlet velocity
+    ``v = x - xp`` is split into normal and tangential parts: an inward normal part is reflected
+    by ``restitution`` (0: inelastic), the tangential part keeps ``1 - friction`` of itself."""
+    v0 = x[i, 0] - xp[i, 0]
+    v1 = x[i, 1] - xp[i, 1]
+    v2 = x[i, 2] - xp[i, 2]
+    vn = v0 * n0 + v1 * n1 + v2 * n2
+    t0 = v0 - vn * n0
+    t1 = v1 - vn * n1
+    t2 = v2 - vn * n2
+    if vn < 0.0:
+        vn = -restitution * vn
+    keep = 1.0 - friction
+    x[i, 0] = q0
+    x[i, 1] = q1
+    x[i, 2] = q2
+    xp[i, 0] = q0 - (keep * t0 + vn * n0)
+    xp[i, 1] = q1 - (keep * t1 + vn * n1)
+    xp[i, 2] = q2 - (keep * t2 + vn * n2)
+
+
+@njit
 def _project_particle_spheres(x, xp, i, centres, radii, friction, restitution):
     """Project particle ``i`` out of every sphere it is inside (in place)."""
     for s in range(radii.shape[0]):
@@ -44,22 +67,8 @@ def _project_particle_spheres(x, xp, i, centres, radii, friction, restitution):
             n0 = 0.0
             n1 = 1.0
             n2 = 0.0
-        v0 = x[i, 0] - xp[i, 0]
-        v1 = x[i, 1] - xp[i, 1]
-        v2 = x[i, 2] - xp[i, 2]
-        vn = v0 * n0 + v1 * n1 + v2 * n2
-        t0 = v0 - vn * n0
-        t1 = v1 - vn * n1
-        t2 = v2 - vn * n2
-        if vn < 0.0:
-            vn = -restitution[s] * vn
-        keep = 1.0 - friction[s]
-        x[i, 0] = centres[s, 0] + big_r * n0
-        x[i, 1] = centres[s, 1] + big_r * n1
-        x[i, 2] = centres[s, 2] + big_r * n2
-        xp[i, 0] = x[i, 0] - (keep * t0 + vn * n0)
-        xp[i, 1] = x[i, 1] - (keep * t1 + vn * n1)
-        xp[i, 2] = x[i, 2] - (keep * t2 + vn * n2)
+        _place(x, xp, i, centres[s, 0] + big_r * n0, centres[s, 1] + big_r * n1, centres[s, 2] + big_r * n2,
+               n0, n1, n2, friction[s], restitution[s])
 
 
 @njit

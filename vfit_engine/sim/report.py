@@ -17,6 +17,20 @@ def _clean(value):
     return value
 
 
+#: The quality bars of a drape on a body (the cloth issue's acceptance): nothing deeper than 2 mm
+#: inside the body, at most 0.5 % of the vertices inside at all, structural strain p99 <= 5 % and
+#: max <= 10 %, settled, finite.
+BARS = dict(deep_count=0, inside_fraction=0.005, p99_strain=0.05, max_strain=0.10)
+
+
+def meets_bars(result):
+    """True when a DrapeResult meets :data:`BARS`."""
+    m = result.metrics
+    return bool(result.converged and m["finite"] and m["deep_count"] <= BARS["deep_count"]
+                and m["inside_fraction"] <= BARS["inside_fraction"] and m["p99_strain"] <= BARS["p99_strain"]
+                and m["max_strain"] <= BARS["max_strain"])
+
+
 def drape_report(result=None, diverged=None, **context):
     """A JSON-ready dict for ``report.json``.
 
