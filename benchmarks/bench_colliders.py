@@ -22,7 +22,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
-KINDS = ("mesh", "spheres", "ellipsoids", "hulls")
+KINDS = ("mesh", "spheres", "bone-spheres", "ellipsoids", "hulls")
 
 
 def main(argv=None):
@@ -37,6 +37,7 @@ def main(argv=None):
     from vfit_cli._common import fmt_table
     from vfit_engine.body.model import N_BODY, BodyModel
     from vfit_engine.body.segment import segment
+    from vfit_engine.collide.bone_spheres import skeleton_bones
     from vfit_engine.collide.body_mesh import MeshCollider
     from vfit_engine.collide.coverage import coverage
     from vfit_engine.garment.garment import load_garment
@@ -54,11 +55,12 @@ def main(argv=None):
     seg = segment(model, full)
     t_seg = time.perf_counter() - t0
     segments = (seg.labels, seg.names)
+    bones = skeleton_bones(model, full)
     # first call: JIT compile or cache load of every kernel used below, on 3 frames
     for kind in KINDS:
         try:
             drape_garment(g.mesh, g.pieces, body, body, tris, settings=DrapeSettings(max_frames=3), collider=kind,
-                          body_collider=exact, segments=segments)
+                          body_collider=exact, segments=segments, bones=bones)
         except DrapeDiverged:
             pass
 
@@ -66,13 +68,13 @@ def main(argv=None):
                          colliders={})
     for kind in KINDS:
         t0 = time.perf_counter()
-        coll = None if kind == "mesh" else _fit_collider(kind, body, tris, exact, segments, st)
+        coll = None if kind == "mesh" else _fit_collider(kind, body, tris, exact, segments, st, bones)
         t_fit = time.perf_counter() - t0
         cov = None if coll is None else coverage(coll, body, seg.labels, seg.names, exact)["total"]
         t0 = time.perf_counter()
         try:
             res = drape_garment(g.mesh, g.pieces, body, body, tris, settings=st, collider=kind, body_collider=exact,
-                                segments=segments)
+                                segments=segments, bones=bones)
         except DrapeDiverged as exc:
             out["colliders"][kind] = dict(diverged=str(exc))
             rows.append([kind, "-", "-", "-", "-", "diverged", "-", "-", "-", "-", "-"])

@@ -34,11 +34,12 @@ def morph_options(func):
 @morph_options
 @click.option("--material", default="cotton", show_default=True,
               help="cotton, denim, silk, jersey, or a material .json file.")
-@click.option("--collider", type=click.Choice(["mesh", "spheres", "ellipsoids", "hulls"]), default="mesh",
-              show_default=True,
-              help="mesh = the exact body surface; spheres, ellipsoids (one per body part) or hulls (convex "
-                   "hulls per part + joint spheres) = shapes fitted to the body: approximate, see "
-                   "BENCHMARKS.md for how far each lets cloth sink in or float.")
+@click.option("--collider", type=click.Choice(["mesh", "spheres", "bone-spheres", "ellipsoids", "hulls"]),
+              default="mesh", show_default=True,
+              help="mesh = the exact body surface; spheres (covering the body), bone-spheres (4 per bone, radii "
+                   "from the body's sections), ellipsoids (one per body part) or hulls (convex hulls per part + "
+                   "joint spheres) = shapes fitted to the body: approximate, see BENCHMARKS.md for how far each "
+                   "lets cloth sink in or float.")
 @click.option("--pin", default="auto", show_default=True,
               help="auto (waistbands and shoulders, attached to the body), none, or a text file of garment "
                    "vertex indices (0-based, one per line).")
@@ -175,19 +176,24 @@ def drape(ctx, garment, body_path, material, collider, pin, transfer, rest, unit
 
     if every:
         save("frame_0000", start)
-    segments = None
+    segments = bones = None
     if collider in ("ellipsoids", "hulls"):
         from vfit_engine.body.segment import segment
 
         seg = segment(model, body_full)
         segments = (seg.labels, seg.names)
+    elif collider == "bone-spheres":
+        from vfit_engine.collide.bone_spheres import skeleton_bones
+
+        bones = skeleton_bones(model, body_full)
     context = dict(garment=garment, garment_units=g.units, garment_vertices=g.mesh.n_verts,
                    garment_gender=tag_gender, warnings=list(g.warnings), body=body_desc, material=mat.name,
                    collider=collider, transfer=transfer_info)
     try:
         result = drape_garment(g.mesh, g.pieces, body, reference, model.body_tris, material=mat, pin=pins,
                                collider=collider, settings=settings, on_frame=on_frame,
-                               start_verts=start if moved else None, rest=rest, segments=segments)
+                               start_verts=start if moved else None, rest=rest, segments=segments,
+                               bones=bones)
     except DrapeDiverged as exc:
         if exc.transfer and "pin_gap_mm" in exc.transfer:
             transfer_info["pin_gap_mm"] = exc.transfer["pin_gap_mm"]

@@ -195,7 +195,7 @@ def test_transfer_on_the_default_body_changes_nothing(tmp_path, skirt_file):
     assert finals[0] == finals[1]
 
 
-@pytest.mark.parametrize("collider", ["ellipsoids", "hulls"])
+@pytest.mark.parametrize("collider", ["bone-spheres", "ellipsoids", "hulls"])
 def test_fitted_colliders(tmp_path, skirt_file, collider):
     """The shapes are fitted to the body's segmentation on the fly; their collision time is reported."""
     out = tmp_path / collider

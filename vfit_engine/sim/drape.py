@@ -132,6 +132,8 @@ class DrapeSettings:
     untangle_strain : float;  untangle_iterations : int
     contact_damping : float, 1/s
         Decay rate of the tangential velocity of cloth the body pushes (mesh collider).
+    spheres_per_bone : int
+        Spheres along each bone of the ``bone-spheres`` collider.
     stretch_zone : float, m
         Width of the cloth round a too-small opening whose strain limit is raised
         (``stretch_zones`` of :func:`drape`).
@@ -173,6 +175,7 @@ class DrapeSettings:
     contact_damping: float = 60.0
     contact_reuse: float = 0.0005
     stretch_zone: float = 0.03
+    spheres_per_bone: int = 4
 
     def __post_init__(self):
         if not 0.0 < self.settle_quantile <= 1.0:
@@ -261,7 +264,7 @@ def _order_from_pins(solver, pin_idx, n):
 
 
 #: Body colliders of :func:`drape`: the exact body mesh, or shapes fitted to the body.
-COLLIDERS = ("mesh", "spheres", "ellipsoids", "hulls")
+COLLIDERS = ("mesh", "spheres", "bone-spheres", "ellipsoids", "hulls")
 
 
 class _Timed:
@@ -299,8 +302,16 @@ class _Timed:
         self.seconds += time.perf_counter() - t0
 
 
-def _fit_collider(kind, body_verts, body_tris, body_collider, segments, st):
+def _fit_collider(kind, body_verts, body_tris, body_collider, segments, st, bones=None):
     """The approximate collider ``kind`` fitted to this body (nothing placed by hand)."""
+    if kind == "bone-spheres":
+        from vfit_engine.collide.bone_spheres import fit_bone_spheres
+        from vfit_engine.collide.spheres import SphereCollider
+
+        if bones is None:
+            raise InputError("the bone-spheres collider needs the body's skeleton")
+        centres, radii, _ = fit_bone_spheres(body_verts, body_tris, bones, per_bone=st.spheres_per_bone)
+        return SphereCollider(centres, radii, skin=st.sphere_skin, friction=min(st.friction * 2, 1.0))
     if kind == "spheres":
         from vfit_engine.collide.auto_spheres import fit_spheres
         from vfit_engine.collide.spheres import SphereCollider
@@ -412,7 +423,7 @@ def drape_metrics(model, pos, body_collider):
 
 def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material="cotton", pins=None,
           collider="mesh", settings=None, body_collider=None, on_frame=None, start_pos=None, segments=None,
-          stretch_zones=None):
+          stretch_zones=None, bones=None):
     """Drape a garment on a body.
 
     Parameters
@@ -428,8 +439,11 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     material : str, Path or Material
     pins : (PinAttachment, (p, 3) float64 m) or None
         Attachment and the pins' targets on this body (:meth:`PinAttachment.positions`).
-    collider : {"mesh", "spheres", "ellipsoids", "hulls"}
-        The exact body, or shapes fitted to it (:data:`COLLIDERS`).
+    collider : {"mesh", "spheres", "bone-spheres", "ellipsoids", "hulls"}
+        The exact body, or shapes fitted to it (:data:`COLLIDERS`): spheres covering the body
+        (:mod:`vfit_engine.collide.auto_spheres`), ``spheres_per_bone`` spheres along each bone with
+        radii from the body's sections (:mod:`vfit_engine.collide.bone_spheres`), an ellipsoid per
+        body part, or convex hulls per part with spheres at the joints.
     settings : DrapeSettings or None
     body_collider : MeshCollider or None
         Reused if given (must be built on ``body_verts``; its skin/friction are overridden).
@@ -442,6 +456,9 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     segments : ((N,) int64, list of str) or None
         Body part label of every body vertex and the part names
         (:func:`vfit_engine.body.segment.segment`); needed by ``ellipsoids`` and ``hulls``.
+    bones : list of ((3,), (3,)) float64 m or None
+        Head and tail of the body's bones (:func:`vfit_engine.collide.bone_spheres.skeleton_bones`);
+        needed by ``bone-spheres``.
     stretch_zones : list of ((L,) int64, float) or None
         Openings that must stretch by at least the given strain to go round the body
         (:func:`vfit_engine.garment.openings.check_openings`): the strain limit of the cloth within
@@ -483,7 +500,7 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
     if collider == "mesh":
         colliders = [ramped]
     elif collider in COLLIDERS:
-        timed = _Timed(_fit_collider(collider, body_verts, body_tris, body_collider, segments, st))
+        timed = _Timed(_fit_collider(collider, body_verts, body_tris, body_collider, segments, st, bones))
         colliders = [timed]
     else:
         raise InputError(f"unknown collider {collider!r}; use one of {', '.join(COLLIDERS)}")
@@ -652,7 +669,7 @@ def read_pin_file(path, vertex_count):
 
 def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, material="cotton", pin="auto",
                   collider="mesh", settings=None, body_collider=None, on_frame=None, transfer="none", mhclo=None,
-                  start_verts=None, rest="garment", segments=None):
+                  start_verts=None, rest="garment", segments=None, bones=None):
     """Pick and attach pins, then :func:`drape` a garment on a body.
 
     Parameters
@@ -667,7 +684,7 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         The body the garment was modelled on (same topology): pins are bound to it and follow
         ``body_verts``. Pass ``body_verts`` when unknown.
     body_tris : (T, 3) int64
-    material, collider, settings, body_collider, on_frame, segments
+    material, collider, settings, body_collider, on_frame, segments, bones
         As in :func:`drape`.
     pin : "auto", "none" or (p,) int64
         ``auto``: :func:`vfit_engine.garment.pins.auto_pins` on ``body_verts``.
@@ -765,7 +782,7 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
     try:
         res = drape(garment_mesh.verts, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
                     material=material, pins=pins, collider=collider, settings=st, body_collider=body_collider,
-                    segments=segments, stretch_zones=zones,
+                    segments=segments, stretch_zones=zones, bones=bones,
                     on_frame=on_frame, start_pos=start)
     except DrapeDiverged as exc:
         exc.transfer = tinfo
