@@ -19,7 +19,8 @@ from .drape import morph_options
               help="mhclo = re-fit the garment's .mhclo binding on the target (needs a body vfit builds from "
                    "measurements: a body file lacks the helper vertices); mhclo-delta = the garment plus the "
                    "binding's displacement; dqs / lbs = ARAP frames of the body with dual-quaternion / linear "
-                   "blend skinning. auto: mhclo when possible, else dqs.")
+                   "blend skinning. auto: mhclo-delta when possible (as vfit drape), else dqs. "
+                   "Every method but mhclo then gives back any clearance from the skin the garment lost.")
 @click.option("--k", "k", type=click.IntRange(1, 64), default=6, show_default=True,
               help="Body vertices each garment vertex follows (dqs/lbs).")
 @click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
@@ -96,13 +97,18 @@ def transfer(ctx, garment, from_path, to_path, method, k, units, output, quiet, 
     if method == "auto":
         method = "dqs"
         if binding is not None:
-            if target.shape[0] > _mhclo_top(binding):
-                method = "mhclo"
+            if min(source.shape[0], target.shape[0]) > _mhclo_top(binding):
+                method = "mhclo-delta"
             else:
                 click.echo("Warning: the target body file has no helper vertices, which the garment's .mhclo "
                            "needs; using dqs (build the body with measurement options for mhclo)", err=True)
     t0 = time.perf_counter()
     verts = transfer_verts(g.mesh.verts, source, target, method=method, k=k, mhclo=binding, model=model)
+    restored = None
+    if method != "mhclo":
+        from vfit_engine.garment.transfer import restore_clearance
+
+        verts, restored = restore_clearance(g.mesh.verts, verts, source, target, model.body_tris)
     t_transfer = time.perf_counter() - t0
     header = [f"vfit transfer: {os.path.basename(garment)} moved by {method}"
               + (f" (k={k})" if method in ("dqs", "lbs") else "") + "; metres, Y up"]
@@ -114,7 +120,9 @@ def transfer(ctx, garment, from_path, to_path, method, k, units, output, quiet, 
         click.echo(f"vfit transfer: {g.mesh.n_verts} vertices by {method}"
                    + (f" (k={k})" if method in ("dqs", "lbs") else "")
                    + f" in {t_transfer:.3f} s; moved mean {moved.mean() * 1000:.1f} mm, "
-                     f"max {moved.max() * 1000:.1f} mm")
+                     f"max {moved.max() * 1000:.1f} mm"
+                   + ("" if restored is None else f"; clearance given back to {int((restored > 0).sum())} "
+                      f"vertices (max {restored.max() * 1000:.1f} mm)"))
     click.echo(f"wrote {output} (metres, Y up) in {time.perf_counter() - t_start:.2f} s")
 
 

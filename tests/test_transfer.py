@@ -317,6 +317,16 @@ def test_cli_mhclo_needs_helpers(cli_files, tmp_path):
     assert "helper vertices" in res.output and "as vfit builds it from measurements" in res.output
 
 
+@needs_shared
+def test_cli_auto_is_mhclo_delta_as_in_drape(tmp_path):
+    """auto = mhclo-delta on a body built from measurements (helpers present), as vfit drape does, and the
+    clearance the garment lost is given back."""
+    out = tmp_path / "suit.obj"
+    res = invoke(SUIT, "--waist", 90, "--hips", 110, "-o", out)
+    assert res.exit_code == 0, res.output
+    assert "by mhclo-delta" in res.output and "clearance given back to" in res.output and out.is_file()
+
+
 def test_cli_help():
     res = invoke("--help")
     assert res.exit_code == 0 and "--method" in res.output and "--waist" in res.output
