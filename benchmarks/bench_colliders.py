@@ -64,13 +64,17 @@ def main(argv=None):
         except DrapeDiverged:
             pass
 
+    per_part = {}
     rows, out = [], dict(garment=args.garment, gender=gender, vertices=g.mesh.n_verts, segmentation_s=round(t_seg, 3),
                          colliders={})
     for kind in KINDS:
         t0 = time.perf_counter()
         coll = None if kind == "mesh" else _fit_collider(kind, body, tris, exact, segments, st, bones)
         t_fit = time.perf_counter() - t0
-        cov = None if coll is None else coverage(coll, body, seg.labels, seg.names, exact)["total"]
+        full_cov = None if coll is None else coverage(coll, body, seg.labels, seg.names, exact)
+        cov = None if full_cov is None else full_cov["total"]
+        if full_cov is not None:
+            per_part[kind] = full_cov["parts"]
         t0 = time.perf_counter()
         try:
             res = drape_garment(g.mesh, g.pieces, body, body, tris, settings=st, collider=kind, body_collider=exact,
@@ -90,7 +94,7 @@ def main(argv=None):
             coll_ms = 1000.0 * queries * per_query
         else:
             coll_ms = 1000.0 * res.collide_time / max(res.steps, 1)
-        rec = dict(fit_s=round(t_fit, 3), coverage=cov, converged=res.converged, frames=res.frames,
+        rec = dict(fit_s=round(t_fit, 3), coverage=cov, coverage_parts=per_part.get(kind), converged=res.converged, frames=res.frames,
                    max_depth_mm=round(m["max_depth_mm"], 2), inside_percent=round(100 * m["inside_fraction"], 2),
                    p99_strain=round(m["p99_strain"], 4), max_strain=round(m["max_strain"], 4),
                    collision_ms_per_substep=round(coll_ms, 3), drape_wall_s=round(res.wall_time, 3),
@@ -109,6 +113,12 @@ def main(argv=None):
         print(fmt_table(rows, ["collider", "fit s", "body outside %", "max gap mm", "overshoot p95/max mm",
                                "converged", "depth in true body mm", "% inside true body", "strain p99/max %",
                                "collide ms/substep", "drape s"]))
+        print("\nper body part: % of its vertices outside the collider (max gap mm) | overshoot p95 / max mm")
+        parts = list(next(iter(per_part.values()))) if per_part else []
+        prow = [[p] + [f"{100 * c[p]['outside_fraction']:.0f} ({c[p]['max_gap_mm']:.0f}) | "
+                       f"{c[p]['overshoot_p95_mm']:.0f} / {c[p]['overshoot_max_mm']:.0f}" if p in c else "-"
+                       for c in per_part.values()] for p in parts]
+        print(fmt_table(prow, ["part"] + list(per_part)))
     return 0
 
 
