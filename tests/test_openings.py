@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from vfit_engine.garment.openings import boundary_loops, check_openings
+from vfit_engine.garment.openings import check_openings, closed_loops
 from vfit_engine.garment.springs import grid_polygons
+from vfit_engine.io.mesh import mesh_from_faces
 
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
 
@@ -21,8 +22,7 @@ def tube(radius, around=48, rows=3, height=0.06, tilt=0.0):
     pos = pos @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T
     faces = [[r * around + i, r * around + (i + 1) % around, (r + 1) * around + (i + 1) % around,
               (r + 1) * around + i] for r in range(rows - 1) for i in range(around)]
-    fv = np.array(faces, dtype=np.int64).ravel()
-    return pos, fv, np.arange(0, fv.size + 1, 4)
+    return mesh_from_faces(pos, faces)
 
 
 @pytest.fixture(scope="module")
@@ -32,20 +32,18 @@ def arm():
     return np.asarray(m.vertices, dtype=np.float64) @ turn.T, np.asarray(m.faces, dtype=np.int64)
 
 
-def test_boundary_loops_of_a_grid_and_a_tube():
+def test_closed_loops_of_a_grid_and_a_tube():
     pos, fv, fo = grid_polygons(5, 4)
-    (loop,) = boundary_loops(fv, fo)
-    assert loop.size == 2 * (5 + 4) - 4
-    pos, fv, fo = tube(0.04)
-    loops = boundary_loops(fv, fo)
-    assert sorted(len(lp) for lp in loops) == [48, 48]
+    sizes = np.diff(fo)
+    (loop,) = closed_loops(mesh_from_faces(pos, fv.reshape(-1, 4)))
+    assert np.all(sizes == 4) and loop.size == 2 * (5 + 4) - 4
+    assert sorted(len(lp) for lp in closed_loops(tube(0.04))) == [48, 48]
 
 
 @pytest.mark.parametrize("radius, tilt", [(0.045, 0.0), (0.045, 0.3), (0.06, 0.0)])
 def test_sleeve_on_a_cylinder(arm, radius, tilt):
     verts, tris = arm
-    pos, fv, fo = tube(radius, tilt=tilt)
-    found = check_openings(pos, fv, fo, verts, tris, skin=0.002)
+    found = check_openings(tube(radius, tilt=tilt), verts, tris, skin=0.002)
     assert len(found) == 2
     length = 48 * 2 * radius * math.sin(math.pi / 48)
     # the fitted plane is perpendicular to the tilted tube: the arm's section there is an ellipse,
@@ -70,7 +68,7 @@ def test_female_suit_sleeves_are_smaller_than_the_arm(body_model):
     body = body_model.default_verts("female")[:N_BODY]
     for name in ("female_casualsuit01", "female_sportsuit01"):
         g = load_garment(GARMENTS / name / f"{name}.obj")
-        found = check_openings(g.mesh.verts, g.mesh.face_verts, g.mesh.face_offsets, body, body_model.body_tris)
+        found = check_openings(g.mesh, body, body_model.body_tris)
         tight = [o for o in found if o["required_strain"] > 0]
         assert len(tight) == 2 and all(o["vertices"] == 21 for o in tight)  # the two sleeve hems
         assert min(o["required_strain"] for o in tight) > 0.10

@@ -27,6 +27,21 @@ SPLINE_SAMPLES = 8
 MAX_PLANES = 100_000
 
 
+def rotation_to_y(n):
+    """(3, 3) rotation taking the unit vector ``n`` to +Y (Rodrigues).
+
+    Sections in any plane: rotate the vertices by it (``verts @ R.T``) and cut at the rotated
+    height of a point of the plane with :meth:`MeshSections.loops`.
+    """
+    y = np.array([0.0, 1.0, 0.0])
+    v = np.cross(n, y)
+    c = float(np.dot(n, y))
+    if np.linalg.norm(v) < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+
+
 class MeshSections:
     """Plane sections of one triangle topology.
 

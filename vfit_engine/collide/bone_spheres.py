@@ -68,17 +68,6 @@ def skeleton_bones(model, verts, min_length=MIN_BONE_LENGTH):
     return out
 
 
-def _rotation_to_y(n):
-    """(3, 3) rotation taking unit vector ``n`` to +Y (Rodrigues, as in garment/openings.py)."""
-    y = np.array([0.0, 1.0, 0.0])
-    v = np.cross(n, y)
-    c = float(np.dot(n, y))
-    if np.linalg.norm(v) < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
-
-
 def _crossings(q, loop):
     """Number of edges of the closed polygon ``loop`` (k, 2) crossed by the ray from ``q`` along +x."""
     a = loop
@@ -212,7 +201,7 @@ def fit_bone_spheres(body_verts, body_tris, bones, per_bone=4, radius="inscribed
     bone_of : (s,) int64
         Index into ``bones`` of each sphere.
     """
-    from vfit_engine.section import MeshSections
+    from vfit_engine.section import MeshSections, rotation_to_y
 
     if radius not in RADIUS_RULES:
         raise InputError(f"unknown radius rule {radius!r}; use one of {list(RADIUS_RULES)}")
@@ -245,7 +234,7 @@ def fit_bone_spheres(body_verts, body_tris, bones, per_bone=4, radius="inscribed
     ts = (np.arange(per_bone) + 0.5) / per_bone
     centres, radii, bone_of = [], [], []
     for i, (head, tail) in enumerate(seg):
-        rot = _rotation_to_y((tail - head) / lengths[i])
+        rot = rotation_to_y((tail - head) / lengths[i])
         rv = verts @ rot.T
         for t in ts:
             p = head + t * (tail - head)

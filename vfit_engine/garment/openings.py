@@ -19,63 +19,14 @@ from __future__ import annotations
 import numpy as np
 
 
-def boundary_loops(face_verts, face_offsets):
-    """Closed boundary loops of a polygon mesh, as vertex index arrays in walk order.
+def closed_loops(mesh):
+    """The closed boundary loops of a garment (:func:`vfit_engine.garment.pins.boundary_loops`
+    without the open chains), as vertex index arrays in walk order."""
+    from vfit_engine.garment.pins import boundary_loops
 
-    Parameters
-    ----------
-    face_verts : (k,) int64;  face_offsets : (m + 1,) int64
-
-    Returns
-    -------
-    list of (L,) int64
-        Only loops where every vertex has exactly two boundary edges (simple closed loops).
-    """
-    fv = np.asarray(face_verts, dtype=np.int64)
-    fo = np.asarray(face_offsets, dtype=np.int64)
-    sizes = np.diff(fo)
-    face_of = np.repeat(np.arange(sizes.size), sizes)
-    nxt = fv[fo[face_of] + (np.arange(fv.size) - fo[face_of] + 1) % sizes[face_of]]
-    edges = np.sort(np.stack([fv, nxt], axis=1), axis=1)
-    uniq, count = np.unique(edges, axis=0, return_counts=True)
-    bd = uniq[count == 1]
-    nbrs = {}
-    for a, b in bd:
-        nbrs.setdefault(int(a), []).append(int(b))
-        nbrs.setdefault(int(b), []).append(int(a))
-    seen, loops = set(), []
-    for start, adj in nbrs.items():
-        if start in seen or len(adj) != 2:
-            continue
-        loop, prev, cur, ok = [start], -1, start, True
-        seen.add(start)
-        while True:
-            cand = [w for w in nbrs[cur] if w != prev]
-            if len(nbrs[cur]) != 2 or not cand:
-                ok = False
-                break
-            prev, cur = cur, cand[0]
-            if cur == start:
-                break
-            if cur in seen:
-                ok = False
-                break
-            loop.append(cur)
-            seen.add(cur)
-        if ok and len(loop) >= 3:
-            loops.append(np.array(loop, dtype=np.int64))
-    return loops
-
-
-def _rotation_to_y(n):
-    """(3, 3) rotation taking unit vector ``n`` to +Y."""
-    y = np.array([0.0, 1.0, 0.0])
-    v = np.cross(n, y)
-    c = float(np.dot(n, y))
-    if np.linalg.norm(v) < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+    edges = {tuple(e) for e in mesh.boundary_edges().tolist()}
+    return [lp for lp in boundary_loops(mesh)
+            if len(lp) >= 3 and (min(lp[0], lp[-1]), max(lp[0], lp[-1])) in edges]
 
 
 def _hull_perimeter(p):
@@ -89,22 +40,21 @@ def _hull_perimeter(p):
         return 0.0
 
 
-def check_openings(garment_pos, face_verts, face_offsets, body_verts, body_tris, skin=0.002,
-                   offsets=(-0.03, -0.02, -0.01, 0.0, 0.01, 0.02, 0.03), rest_pos=None):
+def check_openings(mesh, body_verts, body_tris, skin=0.002, offsets=(-0.03, -0.02, -0.01, 0.0, 0.01, 0.02, 0.03),
+                   pos=None):
     """Each closed opening of the garment against the body part it encircles.
 
     Parameters
     ----------
-    garment_pos : (n, 3) float64, m
-        The garment where it is put on the body.
-    face_verts : (k,) int64;  face_offsets : (m + 1,) int64
+    mesh : MeshData
+        The garment; its vertices give the openings' rest lengths.
+    pos : (n, 3) float64 m or None
+        Where the garment is put on the body (default ``mesh.verts``).
     body_verts : (N, 3) float64, m;  body_tris : (T, 3) int64
     skin : float, m
         Clearance kept from the body.
     offsets : sequence of float, m
         Shifts of the cutting plane along its normal; the smallest tape over them is used.
-    rest_pos : (n, 3) float64 m or None
-        Where the opening's rest length is measured (default ``garment_pos``).
 
     Returns
     -------
@@ -113,18 +63,19 @@ def check_openings(garment_pos, face_verts, face_offsets, body_verts, body_tris,
         ``vertices`` (count), ``centre_m`` (3,), ``rest_length_mm``, ``body_tape_mm`` (smallest over
         ``offsets``), ``required_strain`` (fraction, <= 0 when the opening fits).
     """
-    from vfit_engine.section import MeshSections
+    from vfit_engine.garment.pins import winding_number
+    from vfit_engine.section import MeshSections, rotation_to_y
 
-    pos = np.asarray(garment_pos, dtype=np.float64)
-    rest = pos if rest_pos is None else np.asarray(rest_pos, dtype=np.float64)
+    rest = mesh.verts
+    pos = rest if pos is None else np.asarray(pos, dtype=np.float64)
     body = np.ascontiguousarray(body_verts, dtype=np.float64)
     sections = MeshSections(body_tris, body.shape[0])
     out = []
-    for loop in boundary_loops(face_verts, face_offsets):
+    for loop in closed_loops(mesh):
         p = pos[loop]
         centre = p.mean(axis=0)
         _, _, vt = np.linalg.svd(p - centre)
-        rot = _rotation_to_y(vt[2])
+        rot = rotation_to_y(vt[2])
         rb = body @ rot.T
         c2 = rot @ centre
         q = (p - centre) @ rot.T  # the opening in the plane's frame (y ~ 0)
@@ -132,15 +83,11 @@ def check_openings(garment_pos, face_verts, face_offsets, body_verts, body_tris,
         tapes = []
         for off in offsets:
             for sec in sections.loops(rb, c2[1] + off):
-                d = sec - c2[[0, 2]]
-                # the body loop this opening goes round: its points lie within the opening's reach
-                # and it surrounds the opening's centre (winding test on the convex side is enough:
-                # the centre is inside the loop's bounding box and close to its centroid)
-                if np.max(np.linalg.norm(d, axis=1)) > 1.5 * reach:
+                # the body loop this opening goes round: it winds round the opening's centre and
+                # lies within its reach (not the torso round an arm's cuff)
+                if len(sec) < 3 or np.max(np.linalg.norm(sec - c2[[0, 2]], axis=1)) > 1.5 * reach:
                     continue
-                lo, hi = sec.min(axis=0), sec.max(axis=0)
-                inside = np.all(c2[[0, 2]] > lo) and np.all(c2[[0, 2]] < hi)
-                if inside and len(sec) >= 3:
+                if abs(winding_number(sec, c2[[0, 2]])) > 0.5:
                     tapes.append(_hull_perimeter(sec))
         if not tapes:
             continue

@@ -776,8 +776,7 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
 
     # openings smaller than the body part they go round bound the strain from below (a garment
     # authored too tight there cannot be put on without stretching them): they stretch evenly
-    openings = check_openings(from_pos, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
-                              skin=st.skin, rest_pos=garment_mesh.verts)
+    openings = check_openings(garment_mesh, body_verts, body_tris, skin=st.skin, pos=from_pos)
     zones = [(o["indices"], o["required_strain"]) for o in openings if o["required_strain"] > 0]
     try:
         res = drape(garment_mesh.verts, garment_mesh.face_verts, garment_mesh.face_offsets, body_verts, body_tris,
