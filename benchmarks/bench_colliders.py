@@ -42,7 +42,8 @@ def main(argv=None):
     from vfit_engine.collide.coverage import coverage
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.mhclo import parse_mhclo
-    from vfit_engine.sim.drape import DrapeDiverged, DrapeSettings, _fit_collider, drape_garment
+    from vfit_engine.sim.colliders import fit_collider
+    from vfit_engine.sim.drape import DrapeDiverged, DrapeSettings, drape_garment
 
     model = BodyModel.load()
     g = load_garment(GARMENTS / args.garment / f"{args.garment}.obj")
@@ -69,7 +70,7 @@ def main(argv=None):
                          colliders={})
     for kind in KINDS:
         t0 = time.perf_counter()
-        coll = None if kind == "mesh" else _fit_collider(kind, body, tris, exact, segments, st, bones)
+        coll = None if kind == "mesh" else fit_collider(kind, body, tris, exact, segments, st, bones)
         t_fit = time.perf_counter() - t0
         full_cov = None if coll is None else coverage(coll, body, seg.labels, seg.names, exact)
         cov = None if full_cov is None else full_cov["total"]

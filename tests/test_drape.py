@@ -68,7 +68,7 @@ def test_limiter_sweeps_from_the_pins():
     travel down a cloth hanging from them in few sweeps (Gauss-Seidel along the load path)."""
     from vfit_engine.garment.springs import grid_polygons
     from vfit_engine.kernels.strain_limit import limit_strain
-    from vfit_engine.sim.drape import _order_from_pins
+    from vfit_engine.sim.limiter import order_from_pins
     from vfit_engine.sim.materials import resolve_material
     from vfit_engine.sim.model import Model
     from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
@@ -77,7 +77,7 @@ def test_limiter_sweeps_from_the_pins():
     top = np.flatnonzero(pos[:, 2] == pos[:, 2].max())
     model = Model.from_polygons(fv, fo, pos, resolve_material("cotton"), pin_indices=top)
     solver = SolverVerlet(model, VerletSettings(strain_limit=0.01))
-    _order_from_pins(solver, top, model.particle_count)
+    order_from_pins(solver, top, model.particle_count)
     li, lj = solver._lim_i, solver._lim_j
     row = np.round((pos[:, 2].max() - pos[:, 2]) / 0.05).astype(int)
     key = np.minimum(row[li], row[lj])
@@ -100,7 +100,7 @@ def test_stretch_zone_raises_the_limit_near_the_opening_only():
     """A too-small opening may stretch by its required strain, and so may the cloth within the zone
     width of it (along the cloth); the rest keeps its limit."""
     from vfit_engine.garment.springs import grid_polygons
-    from vfit_engine.sim.drape import _relax_zone
+    from vfit_engine.sim.limiter import relax_zone
     from vfit_engine.sim.materials import resolve_material
     from vfit_engine.sim.model import Model
     from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
@@ -110,7 +110,7 @@ def test_stretch_zone_raises_the_limit_near_the_opening_only():
     solver = SolverVerlet(model, VerletSettings(strain_limit=0.015))
     before = solver._lim_len.copy()
     edge = np.flatnonzero(pos[:, 2] == pos[:, 2].min())  # the 'opening': one boundary row
-    _relax_zone(solver, model, edge, 0.12, 0.015, 0.03)
+    relax_zone(solver, model, edge, 0.12, 0.015, 0.03)
     far = np.maximum(pos[solver._lim_i, 2], pos[solver._lim_j, 2]) - pos[:, 2].min()
     ratio = solver._lim_len / before
     assert np.allclose(ratio[far <= 0.03 + 1e-9], 1.12 / 1.015)  # rows 0-3: within 3 cm

@@ -17,13 +17,16 @@ One drape (:func:`drape`) is:
    start partly inside the body (up to ~13 mm on the default body, more on a wider one), and
    inside vertices are moved out along the sheet's own normal as a patch, under a looser strain
    limit (``untangle_strain``), with no gravity; the pins are put on their targets first;
-4. frames of ``substeps`` Verlet substeps (:class:`~vfit_engine.sim.solver_verlet.SolverVerlet`)
+4. the strain limiter is swept outward from the pins (:func:`vfit_engine.sim.limiter.order_from_pins`),
+   and the cloth round an opening too small for the body part it goes round may stretch as far
+   as it must (``stretch_zones``, :func:`vfit_engine.sim.limiter.relax_zone`);
+5. frames of ``substeps`` Verlet substeps (:class:`~vfit_engine.sim.solver_verlet.SolverVerlet`)
    whose body contacts are solved inside the strain-limit iterations
    (:mod:`vfit_engine.kernels.drape_step`): what the untangling left inside comes out by at
    most ``max_push`` per substep, and ``max_push`` ramps from ``push_start`` to ``push_end``
    over ``ramp_frames``: a sudden push of centimetres would stretch the springs around it
    and launch the cloth;
-5. after each frame: divergence (non-finite positions, or a particle faster than
+6. after each frame: divergence (non-finite positions, or a particle faster than
    ``diverge_speed``) raises :class:`DrapeDiverged` at once, keeping the last good positions;
    the cloth has settled when, for ``settle_frames`` consecutive frames after the ramp, the
    99th percentile of the particles' mean speeds over the frame stays below ``settle_speed``
@@ -37,7 +40,7 @@ Before all this :func:`drape_garment` can move the garment from the body it was 
 target body (:func:`vfit_engine.garment.transfer.transfer_garment`, ``transfer=``): the cloth then starts there, while its rest
 lengths stay the garment's own and the pins are attached and fitted as above.
 
-:func:`drape_metrics` measures the result against the exact body mesh (penetration depth and
+:func:`vfit_engine.sim.metrics.drape_metrics` measures the result against the exact body mesh (penetration depth and
 count, structural strain); :mod:`vfit_engine.sim.report` turns a result into ``report.json``.
 Everything is SI (m, s), Y up.
 """
@@ -50,6 +53,9 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from vfit_engine.errors import InputError, VfitError
+from vfit_engine.sim.colliders import COLLIDERS, LimitedPush, RampedMesh, fit_collider
+from vfit_engine.sim.limiter import order_from_pins, relax_zone
+from vfit_engine.sim.metrics import drape_metrics, edge_strain
 from vfit_engine.sim.pin_fit import PinAttachment  # noqa: F401  (public here too)
 
 
@@ -197,140 +203,6 @@ class DrapeSettings:
         return float(min(material.max_strain, self.strain_cap))
 
 
-class _RampedMesh:
-    """The body MeshCollider with a per-substep push limit the frame loop ramps.
-
-    ``contact_args`` makes :class:`~vfit_engine.sim.solver_verlet.SolverVerlet` solve the
-    contacts inside its strain-limit iterations (:mod:`vfit_engine.kernels.drape_step`);
-    :meth:`project` is the stand-alone projection for other callers.
-    """
-
-    def __init__(self, mesh, max_push, reach=0.002, damping=0.0, reuse=0.0):
-        self.mesh = mesh
-        self.reuse = float(reuse)
-        self.damping = float(damping)
-        self.max_push = float(max_push)
-        self.reach = float(reach)
-        self.seconds = 0.0
-
-    def contact_args(self):
-        m = self.mesh
-        return m._mesh_args, m.skin, self.reach, m.friction, self.max_push, self.damping
-
-    def project(self, x, x_prev, inv_mass):
-        t0 = time.perf_counter()
-        self.mesh.project(x, x_prev, inv_mass, max_push=self.max_push)
-        self.seconds += time.perf_counter() - t0
-
-
-def _relax_zone(solver, model, loop, strain, limit, width):
-    """Let the cloth within ``width`` (m, along its rest edges) of ``loop`` stretch by ``strain``."""
-    from scipy import sparse
-    from scipy.sparse.csgraph import dijkstra
-
-    from vfit_engine.garment.springs import STRUCTURAL
-
-    n = model.particle_count
-    st_i = model.spring_indices[model.spring_type == STRUCTURAL]
-    w = model.spring_rest[model.spring_type == STRUCTURAL]
-    graph = sparse.coo_matrix((w, (st_i[:, 0], st_i[:, 1])), shape=(n, n)).tocsr()
-    dist = dijkstra(graph, directed=False, indices=np.asarray(loop), limit=width, min_only=True)
-    zone = np.isfinite(dist)
-    inside = zone[solver._lim_i] & zone[solver._lim_j]
-    factor = (1.0 + strain) / (1.0 + limit)
-    solver._lim_len[inside] = np.maximum(solver._lim_len[inside], solver._lim_len[inside] * factor)
-
-
-def _order_from_pins(solver, pin_idx, n):
-    """Sweep the strain limiter from the pins outward (springs by graph distance from the pins).
-
-    The pins move the cloth (to their targets on the body) and hold it up; a sweep that starts
-    at them passes their pull on down the cloth within the sweep, where the vertex order may meet
-    the pulled spring last. Measured on ``scripts/pipeline_sizes.py`` (male suits, XS-XL): 9 of 10
-    cases within the strain bars with this order, 6 of 10 with the vertex order.
-    """
-    from scipy import sparse
-    from scipy.sparse.csgraph import dijkstra  # unweighted: a breadth-first search from all pins
-
-    li, lj = solver._lim_i, solver._lim_j
-    adj = sparse.coo_matrix((np.ones(li.size), (li, lj)), shape=(n, n)).tocsr()
-    depth = dijkstra(adj, directed=False, indices=pin_idx, unweighted=True, min_only=True)
-    depth[~np.isfinite(depth)] = np.inf  # pieces without pins keep their relative order, last
-    key = np.minimum(depth[li], depth[lj])
-    order = np.argsort(key, kind="stable")
-    solver._lim_i = np.ascontiguousarray(li[order])
-    solver._lim_j = np.ascontiguousarray(lj[order])
-    solver._lim_len = np.ascontiguousarray(solver._lim_len[order])
-
-
-#: Body colliders of :func:`drape`: the exact body mesh, or shapes fitted to the body.
-COLLIDERS = ("mesh", "spheres", "bone-spheres", "ellipsoids", "hulls")
-
-
-class _Timed:
-    """A fitted collider whose pushes are limited to ``max_push`` per substep (ramped by the frame
-    loop like the mesh collider's) and whose ``project`` time is summed (``seconds``).
-
-    Shapes fitted around the body overlap a garment made for it by centimetres at the start (an
-    ellipsoid bounds its part, so it stands off the skin); pushing all of that out in one substep
-    would stretch the springs around it and launch the cloth. The velocity the collider leaves
-    (its friction and restitution) is kept; only the position change is shortened.
-    """
-
-    def __init__(self, inner, max_push=math.inf):
-        self.inner = inner
-        self.max_push = float(max_push)
-        self.seconds = 0.0
-        self._before = None
-
-    def project(self, x, x_prev, inv_mass):
-        t0 = time.perf_counter()
-        if self._before is None or self._before.shape != x.shape:
-            self._before, self._len = np.empty_like(x), np.empty(x.shape[0])
-        before, length = self._before, self._len
-        np.copyto(before, x)
-        self.inner.project(x, x_prev, inv_mass)
-        # x_prev -= x, then x = before + scaled push, then x_prev += x: the velocity is unchanged
-        np.subtract(x_prev, x, out=x_prev)
-        np.subtract(x, before, out=x)
-        np.sqrt(np.einsum("ij,ij->i", x, x, out=length), out=length)
-        np.maximum(length, self.max_push, out=length)
-        np.divide(self.max_push, length, out=length)
-        x *= length[:, None]
-        x += before
-        np.add(x_prev, x, out=x_prev)
-        self.seconds += time.perf_counter() - t0
-
-
-def _fit_collider(kind, body_verts, body_tris, body_collider, segments, st, bones=None):
-    """The approximate collider ``kind`` fitted to this body (nothing placed by hand)."""
-    if kind == "bone-spheres":
-        from vfit_engine.collide.bone_spheres import fit_bone_spheres
-        from vfit_engine.collide.spheres import SphereCollider
-
-        if bones is None:
-            raise InputError("the bone-spheres collider needs the body's skeleton")
-        centres, radii, _ = fit_bone_spheres(body_verts, body_tris, bones, per_bone=st.spheres_per_bone)
-        return SphereCollider(centres, radii, skin=st.sphere_skin, friction=min(st.friction * 2, 1.0))
-    if kind == "spheres":
-        from vfit_engine.collide.auto_spheres import fit_spheres
-        from vfit_engine.collide.spheres import SphereCollider
-
-        centres, radii = fit_spheres(body_verts, body_tris, body_collider)
-        return SphereCollider(centres, radii, skin=st.sphere_skin, friction=min(st.friction * 2, 1.0))
-    if segments is None:
-        raise InputError(f"the {kind} collider needs the body's segmentation")
-    labels, names = segments
-    labels = np.asarray(labels, dtype=np.int64)[:body_verts.shape[0]]
-    if kind == "ellipsoids":
-        from vfit_engine.collide.ellipsoids import fit_ellipsoids
-
-        return fit_ellipsoids(body_verts[:labels.size], labels, names, skin=st.sphere_skin / 2, friction=st.friction)
-    from vfit_engine.collide.hulls import fit_hulls
-
-    return fit_hulls(body_verts[:labels.size], labels, names, body_tris=body_tris, skin=st.skin, friction=st.friction)
-
-
 @dataclass
 class DrapeResult:
     """What a drape produced.
@@ -382,43 +254,6 @@ class DrapeResult:
     pin_indices: np.ndarray | None = None
     pin_targets: np.ndarray | None = None
     openings: list | None = None
-
-
-def drape_metrics(model, pos, body_collider):
-    """Penetration and strain of draped cloth.
-
-    Parameters
-    ----------
-    model : Model
-    pos : (n, 3) float64, m
-    body_collider : MeshCollider
-        The exact body (inside = negative signed distance).
-
-    Returns
-    -------
-    dict
-        ``max_depth_mm``, ``inside_count``, ``inside_fraction``, ``deep_count`` (deeper than 2 mm),
-        ``max_strain``, ``p99_strain`` (structural springs, ``l / l0 - 1``), ``finite``.
-    """
-    from vfit_engine.garment.springs import STRUCTURAL
-
-    pos = np.asarray(pos, dtype=np.float64)
-    finite = bool(np.all(np.isfinite(pos)))
-    out = dict(finite=finite)
-    if not finite:
-        return out
-    pen = body_collider.penetration(pos)
-    strain = model.spring_strain(pos)[model.spring_type == STRUCTURAL]
-    n = max(pos.shape[0], 1)
-    out.update(
-        max_depth_mm=1000.0 * pen["max_depth_m"],
-        inside_count=pen["inside_count"],
-        inside_fraction=pen["inside_count"] / n,
-        deep_count=int(np.count_nonzero(pen["depth_m"] > 0.002)),
-        max_strain=float(strain.max()) if strain.size else 0.0,
-        p99_strain=float(np.percentile(strain, 99)) if strain.size else 0.0,
-    )
-    return out
 
 
 def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material="cotton", pins=None,
@@ -495,20 +330,20 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
         body_collider = MeshCollider(body_verts, body_tris, skin=st.skin, friction=st.friction)
     else:
         body_collider.skin, body_collider.friction = float(st.skin), float(st.friction)
-    ramped = _RampedMesh(body_collider, st.push_start, damping=st.contact_damping, reuse=st.contact_reuse)
+    ramped = RampedMesh(body_collider, st.push_start, damping=st.contact_damping, reuse=st.contact_reuse)
     timed = None
     if collider == "mesh":
         colliders = [ramped]
     elif collider in COLLIDERS:
-        timed = _Timed(_fit_collider(collider, body_verts, body_tris, body_collider, segments, st, bones))
+        timed = LimitedPush(fit_collider(collider, body_verts, body_tris, body_collider, segments, st, bones))
         colliders = [timed]
     else:
         raise InputError(f"unknown collider {collider!r}; use one of {', '.join(COLLIDERS)}")
     solver = SolverVerlet(model, vs, colliders)
     if pin_idx.size:
-        _order_from_pins(solver, pin_idx, model.particle_count)
+        order_from_pins(solver, pin_idx, model.particle_count)
     for loop, strain in stretch_zones or ():
-        _relax_zone(solver, model, loop, strain, limit, st.stretch_zone)
+        relax_zone(solver, model, loop, strain, limit, st.stretch_zone)
     frame_dt = 1.0 / st.fps
     dt = frame_dt / int(st.substeps)
     pin_to = np.zeros((0, 3)) if pins is None else np.ascontiguousarray(pins[1], dtype=np.float64)
@@ -609,33 +444,6 @@ def drape(garment_pos, face_verts, face_offsets, body_verts, body_tris, material
         metrics=drape_metrics(model, pos, body_collider), settings=settings_out,
         softened_fraction=solver.softened_fraction,
     )
-
-
-def edge_strain(face_verts, face_offsets, rest_pos, pos):
-    """Strain ``l / l0 - 1`` of the polygon edges of ``pos`` against ``rest_pos``.
-
-    Parameters
-    ----------
-    face_verts : (k,) int64;  face_offsets : (m + 1,) int64
-    rest_pos, pos : (n, 3) float64, m
-
-    Returns
-    -------
-    dict
-        ``max`` and ``p99`` (fractions) over the unique edges.
-    """
-    fv = np.asarray(face_verts, dtype=np.int64)
-    fo = np.asarray(face_offsets, dtype=np.int64)
-    sizes = np.diff(fo)
-    face_of = np.repeat(np.arange(sizes.size), sizes)
-    nxt = fv[fo[face_of] + (np.arange(fv.size) - fo[face_of] + 1) % sizes[face_of]]
-    edges = np.unique(np.sort(np.stack([fv, nxt], axis=1), axis=1), axis=0)
-    l0 = np.linalg.norm(rest_pos[edges[:, 1]] - rest_pos[edges[:, 0]], axis=1)
-    ok = l0 > 0
-    strain = np.linalg.norm(pos[edges[ok, 1]] - pos[edges[ok, 0]], axis=1) / l0[ok] - 1.0
-    if not strain.size:
-        return dict(max=0.0, p99=0.0)
-    return dict(max=float(strain.max()), p99=float(np.percentile(strain, 99)))
 
 
 def read_pin_file(path, vertex_count):
@@ -788,8 +596,7 @@ def drape_garment(garment_mesh, pieces, body_verts, reference_verts, body_tris, 
         raise
     res.settings["transfer"] = tinfo
     if res.metrics.get("finite"):
-        res.metrics["garment_strain"] = edge_strain(given_mesh.face_verts, given_mesh.face_offsets, given_mesh.verts,
-                                                    res.pos)
+        res.metrics["garment_strain"] = edge_strain(given_mesh, res.pos)
     res.settings["pins"] = dict(
         mode=pin if isinstance(pin, str) else "file", count=int(idx.size), dropped_inside=dropped,
         **fit,
