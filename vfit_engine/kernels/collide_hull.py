@@ -45,7 +45,7 @@ import numpy as np
 
 from vfit_engine._jit import njit
 from vfit_engine.kernels.collide_mesh import _closest_on_triangle
-from vfit_engine.kernels.collide_sphere import _place
+from vfit_engine.kernels.collide_sphere import _place, _radial_exit
 
 #: A point counts as inside a shape when its depth is below -INSIDE_TOL (m): a particle just
 #: projected onto a face must not count as inside that face's hull through rounding.
@@ -128,21 +128,8 @@ def _candidate(k, x0, x1, x2, normals, offsets, hull_start, sphere_centres, sphe
         pen = offsets[plane] - (n0 * x0 + n1 * x1 + n2 * x2)
         return x0 + pen * n0, x1 + pen * n1, x2 + pen * n2, n0, n1, n2
     s = k - h
-    d0 = x0 - sphere_centres[s, 0]
-    d1 = x1 - sphere_centres[s, 1]
-    d2 = x2 - sphere_centres[s, 2]
-    r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-    if r > 0.0:
-        n0 = d0 / r
-        n1 = d1 / r
-        n2 = d2 / r
-    else:
-        n0 = 0.0
-        n1 = 1.0
-        n2 = 0.0
-    big_r = sphere_radii[s]
-    return (sphere_centres[s, 0] + big_r * n0, sphere_centres[s, 1] + big_r * n1,
-            sphere_centres[s, 2] + big_r * n2, n0, n1, n2)
+    return _radial_exit(x0, x1, x2, sphere_centres[s, 0], sphere_centres[s, 1], sphere_centres[s, 2],
+                        sphere_radii[s])
 
 
 @njit

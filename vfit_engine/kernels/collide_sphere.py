@@ -48,6 +48,25 @@ def _place(x, xp, i, q0, q1, q2, n0, n1, n2, friction, restitution):
 
 
 @njit
+def _radial_exit(x0, x1, x2, c0, c1, c2, radius):
+    """The point of the sphere (centre c, ``radius``) straight out from its centre through x, and
+    the outward normal there (+Y for a point at the centre)."""
+    d0 = x0 - c0
+    d1 = x1 - c1
+    d2 = x2 - c2
+    r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if r > 0.0:
+        n0 = d0 / r
+        n1 = d1 / r
+        n2 = d2 / r
+    else:
+        n0 = 0.0
+        n1 = 1.0
+        n2 = 0.0
+    return c0 + radius * n0, c1 + radius * n1, c2 + radius * n2, n0, n1, n2
+
+
+@njit
 def _project_particle_spheres(x, xp, i, centres, radii, friction, restitution):
     """Project particle ``i`` out of every sphere it is inside (in place)."""
     for s in range(radii.shape[0]):
@@ -58,17 +77,9 @@ def _project_particle_spheres(x, xp, i, centres, radii, friction, restitution):
         big_r = radii[s]
         if r2 >= big_r * big_r:
             continue
-        r = math.sqrt(r2)
-        if r > 0.0:
-            n0 = d0 / r
-            n1 = d1 / r
-            n2 = d2 / r
-        else:
-            n0 = 0.0
-            n1 = 1.0
-            n2 = 0.0
-        _place(x, xp, i, centres[s, 0] + big_r * n0, centres[s, 1] + big_r * n1, centres[s, 2] + big_r * n2,
-               n0, n1, n2, friction[s], restitution[s])
+        q0, q1, q2, n0, n1, n2 = _radial_exit(x[i, 0], x[i, 1], x[i, 2], centres[s, 0], centres[s, 1],
+                                              centres[s, 2], big_r)
+        _place(x, xp, i, q0, q1, q2, n0, n1, n2, friction[s], restitution[s])
 
 
 @njit
