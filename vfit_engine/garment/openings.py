@@ -18,15 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def closed_loops(mesh):
-    """The closed boundary loops of a garment (:func:`vfit_engine.garment.pins.boundary_loops`
-    without the open chains), as vertex index arrays in walk order."""
-    from vfit_engine.garment.pins import boundary_loops
-
-    edges = {tuple(e) for e in mesh.boundary_edges().tolist()}
-    return [lp for lp in boundary_loops(mesh)
-            if len(lp) >= 3 and (min(lp[0], lp[-1]), max(lp[0], lp[-1])) in edges]
+from vfit_engine.geometry import closed_loops, winding_number
 
 
 def _hull_perimeter(p):
@@ -63,7 +55,6 @@ def check_openings(mesh, body_verts, body_tris, skin=0.002, offsets=(-0.03, -0.0
         ``vertices`` (count), ``centre_m`` (3,), ``rest_length_mm``, ``body_tape_mm`` (smallest over
         ``offsets``), ``required_strain`` (fraction, <= 0 when the opening fits).
     """
-    from vfit_engine.garment.pins import winding_number
     from vfit_engine.section import MeshSections, rotation_to_y
 
     rest = mesh.verts

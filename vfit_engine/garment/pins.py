@@ -3,19 +3,7 @@
 A pinned garment vertex follows a fixed point of the body surface (a triangle and barycentric
 coordinates) instead of being simulated; that is what holds trousers up and a top on the shoulders.
 
-Body levels (``body_levels``) come from horizontal sections of the body surface, so they follow a
-morphed body without landmarks: for a height ``y`` the triangles crossing the plane give x-intervals
-which are merged into connected runs.
-
-* armpit level: between 55 % and 85 % of the height, the top of the longest stretch of sections
-  with three or more runs (torso and both arms apart, A-pose); shoulder bumps just below the neck
-  or the hands give only short stretches;
-* neck level: the narrowest central run between the armpit level and 60 % of the way to the top;
-* crotch level: scanning down from the armpit level, the first ``y`` where the body centre line is
-  not covered (the legs have separated);
-* waist level: the narrowest central run between crotch and armpit (searched in the middle 10-90 %).
-
-Pins per piece (``auto_pins``):
+Pins per piece (``auto_pins``), at the body levels of :func:`vfit_engine.body.levels.body_levels`:
 
 * bottom (trousers, skirt; the piece stays below the armpit level): the open boundary loop (edges
   used by one face) with the highest mean height among the loops whose XZ projection winds around
@@ -31,194 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from vfit_engine.body.levels import Sections, body_center_xz, body_levels
+from vfit_engine.geometry import boundary_loops, vertex_normals, winding_number
+
 #: Smallest Y component of the body normal counted as "facing up" in the shoulder region.
 SHOULDER_MIN_NORMAL_Y = 0.7
 #: Largest garment-to-body distance of a shoulder pin, m.
 SHOULDER_MAX_DIST = 0.04
 #: A piece reaching this far above the armpit level is a top, m.
 TOP_MARGIN = 0.02
-#: Vertical step of the section scans, m.
-SCAN_STEP = 0.005
-
-
-class _Sections:
-    """Horizontal sections of a triangle surface (triangles gathered once, sorted by their low Y)."""
-
-    def __init__(self, verts, tris):
-        t = np.asarray(verts, dtype=np.float64)[np.asarray(tris, dtype=np.int64)]
-        lo = t[:, :, 1].min(1)
-        order = np.argsort(lo)
-        self.t = t[order]
-        self.lo = lo[order]
-        self.hi = t[order][:, :, 1].max(1)
-
-    def runs(self, y, tol=0.002):
-        """Merged x-intervals (r, 2) of the section at height ``y``, left to right."""
-        n = int(np.searchsorted(self.lo, y))
-        m = self.hi[:n] > y
-        if not m.any():
-            return np.zeros((0, 2))
-        t = self.t[:n][m]
-        xs = np.full((t.shape[0], 3), np.nan)
-        for k, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
-            a, b = t[:, i], t[:, j]
-            cross = (a[:, 1] - y) * (b[:, 1] - y) < 0
-            s = np.where(cross, (y - a[:, 1]) / np.where(cross, b[:, 1] - a[:, 1], 1.0), 0.0)
-            xs[:, k] = np.where(cross, a[:, 0] + s * (b[:, 0] - a[:, 0]), np.nan)
-        lo, hi = np.nanmin(xs, 1), np.nanmax(xs, 1)
-        order = np.argsort(lo)
-        runs = []
-        for a, b in zip(lo[order].tolist(), hi[order].tolist()):
-            if runs and a <= runs[-1][1] + tol:
-                runs[-1][1] = max(runs[-1][1], b)
-            else:
-                runs.append([a, b])
-        return np.array(runs)
-
-
-def _central_run(runs, x_c):
-    for a, b in runs:
-        if a <= x_c <= b:
-            return a, b
-    return None
-
-
-def body_levels(body_verts, body_tris):
-    """Armpit, neck, waist and crotch heights of a body in A-pose (see the module docstring).
-
-    Parameters
-    ----------
-    body_verts : (N, 3) float64, m
-    body_tris : (T, 3) int64
-        Triangles of the visible body surface.
-
-    Returns
-    -------
-    dict
-        ``y_min``, ``y_max``, ``height``, ``armpit_y``, ``neck_y``, ``waist_y``, ``crotch_y`` (m),
-        ``center_x`` (m). A level that could not be found is NaN.
-    """
-    v = np.asarray(body_verts, dtype=np.float64)
-    tris = np.asarray(body_tris, dtype=np.int64)
-    return _levels(v[np.unique(tris)], _Sections(v, tris))
-
-
-def _levels(surf, sec):
-    y0, y1 = float(surf[:, 1].min()), float(surf[:, 1].max())
-    h = y1 - y0
-    x_c = float(np.median(surf[:, 0]))
-    out = dict(y_min=y0, y_max=y1, height=h, center_x=x_c, armpit_y=np.nan, neck_y=np.nan,
-               waist_y=np.nan, crotch_y=np.nan)
-    # armpit: top of the longest stretch of sections with the arms apart (>= 3 runs) in the
-    # upper body; shoulder bumps or hands give short stretches only
-    ys = np.arange(y0 + 0.55 * h, y0 + 0.85 * h, SCAN_STEP)
-    apart = np.array([len(sec.runs(y)) >= 3 for y in ys])
-    if not apart.any():
-        return out
-    best_len, best_top, run_len = 0, None, 0
-    for i, a in enumerate(apart):
-        run_len = run_len + 1 if a else 0
-        if run_len > best_len:
-            best_len, best_top = run_len, i
-    armpit = float(ys[best_top])
-    out["armpit_y"] = armpit
-    ys_up = np.arange(armpit, armpit + 0.6 * (y1 - armpit), SCAN_STEP)
-    widths = []
-    for y in ys_up:
-        r = _central_run(sec.runs(y), x_c)
-        widths.append(np.nan if r is None else r[1] - r[0])
-    if np.isfinite(widths).any():
-        out["neck_y"] = float(ys_up[np.nanargmin(widths)])
-    below = np.arange(armpit, y0, -SCAN_STEP)
-    widths_below = []
-    for y in below:
-        r = _central_run(sec.runs(y), x_c)
-        if r is None:
-            out["crotch_y"] = float(y)
-            break
-        widths_below.append(r[1] - r[0])
-    if np.isfinite(out["crotch_y"]) and widths_below:
-        n = len(widths_below)
-        lo, hi = int(0.1 * n), max(int(0.9 * n), int(0.1 * n) + 1)
-        out["waist_y"] = float(below[lo + int(np.argmin(widths_below[lo:hi]))])
-    return out
-
-
-def vertex_normals(verts, tris):
-    """(n, 3) unit area-weighted vertex normals, oriented outward (away from the centroid on average)."""
-    v = np.asarray(verts, dtype=np.float64)
-    fn = np.cross(v[tris[:, 1]] - v[tris[:, 0]], v[tris[:, 2]] - v[tris[:, 0]])
-    n = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(n, tris[:, k], fn)
-    used = np.unique(tris)
-    c = v[used].mean(0)
-    if np.sum(n[used] * (v[used] - c)) < 0:
-        n = -n
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
-    return n / np.where(norm > 0, norm, 1.0)
-
-
-def boundary_loops(mesh, vertex_mask=None):
-    """Closed loops of boundary edges (edges used by exactly one face).
-
-    Parameters
-    ----------
-    mesh : MeshData
-    vertex_mask : (n,) bool or None
-        Keep only edges whose both ends are in the mask (one garment piece).
-
-    Returns
-    -------
-    list of (L,) int64
-        Vertex indices in walking order; open chains (non-manifold borders) are returned too.
-    """
-    e = mesh.boundary_edges()
-    if vertex_mask is not None and len(e):
-        e = e[vertex_mask[e[:, 0]] & vertex_mask[e[:, 1]]]
-    adj = {}
-    for a, b in e.tolist():
-        adj.setdefault(a, []).append(b)
-        adj.setdefault(b, []).append(a)
-    seen_edges = set()
-    loops = []
-    for start in sorted(adj):
-        for nb in adj[start]:
-            if (min(start, nb), max(start, nb)) in seen_edges:
-                continue
-            loop = [start]
-            prev, cur = start, nb
-            seen_edges.add((min(prev, cur), max(prev, cur)))
-            while cur != start:
-                loop.append(cur)
-                nxt = [w for w in adj[cur] if (min(cur, w), max(cur, w)) not in seen_edges]
-                if not nxt:
-                    break
-                prev, cur = cur, nxt[0]
-                seen_edges.add((min(prev, cur), max(prev, cur)))
-            loops.append(np.array(loop, dtype=np.int64))
-    return loops
-
-
-def winding_number(points_xz, center_xz):
-    """Winding number of the closed polygon (L, 2) around ``center_xz`` (2,)."""
-    d = np.asarray(points_xz, dtype=np.float64) - np.asarray(center_xz, dtype=np.float64)
-    ang = np.arctan2(d[:, 1], d[:, 0])
-    step = np.diff(np.concatenate([ang, ang[:1]]))
-    step = (step + np.pi) % (2 * np.pi) - np.pi
-    return float(step.sum() / (2 * np.pi))
-
-
-def _body_center_xz(surf, sec, x_c, y, half=0.02):
-    """Body centre line at height y: (x_c, median z of the surface near y inside the central run)."""
-    slab = surf[np.abs(surf[:, 1] - y) <= half]
-    r = _central_run(sec.runs(y), x_c)
-    if r is not None:
-        inside = slab[(slab[:, 0] >= r[0]) & (slab[:, 0] <= r[1])]
-        if len(inside):
-            slab = inside
-    z = float(np.median(slab[:, 2])) if len(slab) else float(np.median(surf[:, 2]))
-    return np.array([x_c, z])
 
 
 def _waist_loop(mesh, mask, surf, sec, x_c):
@@ -229,7 +38,7 @@ def _waist_loop(mesh, mask, surf, sec, x_c):
             continue
         p = mesh.verts[loop]
         y = float(p[:, 1].mean())
-        w = winding_number(p[:, [0, 2]], _body_center_xz(surf, sec, x_c, y))
+        w = winding_number(p[:, [0, 2]], body_center_xz(surf, sec, x_c, y))
         if abs(w) > 0.5 and (best is None or y > best[1]):
             best = (loop, y)
     return best
@@ -285,9 +94,9 @@ def auto_pins(mesh, body_verts, body_tris, kind="auto", pieces=None):
     tris = np.asarray(body_tris, dtype=np.int64)
     surf_idx = np.unique(tris)
     surf = v[surf_idx]
-    sec = _Sections(v, tris)
-    levels = _levels(surf, sec)
-    normals = vertex_normals(v, tris)
+    sec = Sections(v, tris)
+    levels = body_levels(v, tris, sections=sec)
+    normals = vertex_normals(v, tris, outward=True)
     if pieces is None:
         pieces = piece_labels(mesh.n_verts, mesh.edges())
     info = {"levels": levels, "pieces": [], "warnings": []}

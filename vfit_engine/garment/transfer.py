@@ -30,6 +30,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from vfit_engine.body.model import N_BODY, N_VERTS, BodyModel
 from vfit_engine.errors import InputError
 from vfit_engine.garment.arap import (
     _incidence,
@@ -40,8 +41,6 @@ from vfit_engine.garment.arap import (
     rigid_to_dual_quat,
 )
 
-N_BODY = 13380
-N_VERTS = 19158
 METHODS = ("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none")
 #: Nearest body vertices per garment vertex; 6 is the sweet spot found by the garment-adaptation seed.
 DEFAULT_K = 6
@@ -50,8 +49,6 @@ MAX_K = 64
 
 @lru_cache(maxsize=1)
 def _default_model():
-    from vfit_engine.body.model import BodyModel
-
     return BodyModel.load()
 
 

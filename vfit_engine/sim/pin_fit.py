@@ -98,7 +98,7 @@ def _tri_frames(verts, tris, which):
 
 
 def pinned_loops(mesh, idx, min_share=0.5):
-    """Boundary loops of ``mesh`` that are mostly pinned.
+    """Closed boundary loops of ``mesh`` that are mostly pinned.
 
     Parameters
     ----------
@@ -114,15 +114,12 @@ def pinned_loops(mesh, idx, min_share=0.5):
         The pinned vertices of each loop in walking order and the rest arc length (m) from each
         to the next one along the loop (the last wraps to the first).
     """
-    from vfit_engine.garment.pins import boundary_loops
+    from vfit_engine.geometry import closed_loops
 
     pinned = np.zeros(mesh.n_verts, dtype=bool)
     pinned[idx] = True
-    edges = {tuple(e) for e in np.sort(mesh.boundary_edges(), axis=1).tolist()}
     out = []
-    for ring in boundary_loops(mesh):
-        if len(ring) < 3 or (min(ring[0], ring[-1]), max(ring[0], ring[-1])) not in edges:
-            continue  # an open chain
+    for ring in closed_loops(mesh):
         on = pinned[ring]
         if on.sum() < 3 or on.mean() < min_share:
             continue

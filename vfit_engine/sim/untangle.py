@@ -14,30 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def vertex_normals(pos, face_verts, face_offsets):
-    """(n, 3) unit vertex normals: the sum of the Newell normals of the incident polygons.
-
-    Parameters
-    ----------
-    pos : (n, 3) float64, m
-    face_verts : (k,) int64;  face_offsets : (m + 1,) int64
-        Flat polygons (:mod:`vfit_engine.garment.springs`).
-    """
-    fv = np.asarray(face_verts, dtype=np.int64)
-    fo = np.asarray(face_offsets, dtype=np.int64)
-    sizes = np.diff(fo)
-    face_of = np.repeat(np.arange(sizes.size), sizes)
-    local = np.arange(fv.size) - fo[face_of]
-    nxt = fv[fo[face_of] + (local + 1) % sizes[face_of]]
-    a, b = pos[fv], pos[nxt]
-    # Newell: sum over edges of (a x b) is twice the polygon's vector area
-    face_n = np.zeros((sizes.size, 3))
-    np.add.at(face_n, face_of, np.cross(a, b))
-    vn = np.zeros_like(pos)
-    np.add.at(vn, fv, face_n[face_of])
-    ln = np.linalg.norm(vn, axis=1, keepdims=True)
-    return np.divide(vn, ln, out=np.zeros_like(vn), where=ln > 0)
+from vfit_engine.geometry import vertex_normals
 
 
 def untangle(pos, face_verts, face_offsets, collider, spring_indices, max_len, skin, pinned=None,
@@ -75,7 +52,8 @@ def untangle(pos, face_verts, face_offsets, collider, spring_indices, max_len, s
         Untangled positions.
     info : dict
         ``iterations``, ``inside_before`` / ``inside_after`` (vertices closer than ``skin``),
-        ``flip`` (True: the polygons wind inward, so the outward normal is minus :func:`vertex_normals`).
+        ``flip`` (True: the polygons wind inward, so the outward normal is minus
+        :func:`vfit_engine.geometry.vertex_normals`).
     """
     from scipy import sparse
 
