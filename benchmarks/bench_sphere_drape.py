@@ -5,8 +5,10 @@ sphere of radius 0.3 m and falls for 2 s (120 frames at 60 fps). Reports wall
 time of the warm 2 s drape (JIT compile measured apart, on a tiny cloth),
 ms per frame, particle-substeps per second, the largest penetration into the
 true sphere (mm, 0 when nothing is inside) and the largest structural stretch.
+``--baseline`` also runs the plain Numba mass-spring of baseline_sphere_drape.py
+(40 substeps, 5 Provot sweeps, 2 threads) in the same process after vfit's runs.
 
-    python benchmarks/bench_sphere_drape.py --n 100 [--parallel] [--json]
+    python benchmarks/bench_sphere_drape.py --n 100 [--parallel] [--baseline] [--json]
 """
 import argparse
 import json
@@ -68,6 +70,8 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1, help="runs; the fastest is reported")
     ap.add_argument("--parallel", action="store_true", help="use the parallel=True kernel")
     ap.add_argument("--threads", type=int, default=None, help="numba threads (with --parallel)")
+    ap.add_argument("--baseline", action="store_true",
+                    help="also run the plain Numba baseline (baseline_sphere_drape.py) in this run")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args(argv)
 
@@ -82,6 +86,12 @@ def main(argv=None):
     t0 = time.perf_counter()
     run(4, frames=1, **kw)  # compiles (or loads from cache) every kernel used
     compile_s = time.perf_counter() - t0
+    if args.baseline:
+        t0 = time.perf_counter()
+        import baseline_sphere_drape as baseline
+
+        baseline.run(4, frames=1)
+        baseline_compile_s = time.perf_counter() - t0
 
     runs = [run(args.n, **kw) for _ in range(max(1, args.repeat))]
     wall, cpu, solver, state, sphere = min(runs, key=lambda r: r[0])
@@ -96,6 +106,16 @@ def main(argv=None):
         max_speed=round(solver.max_speed(state), 4), softened_fraction=round(solver.softened_fraction, 3),
         finite=bool(np.all(np.isfinite(state.pos))), min_y=round(float(state.pos[:, 1].min()), 4),
     )
+    if args.baseline:
+        b_runs = [baseline.run(args.n, threads=2) for _ in range(max(1, args.repeat))]
+        b_wall, b_cpu, b_drape = min(b_runs, key=lambda r: r[0])
+        result.update(
+            baseline_wall_s=round(b_wall, 4), baseline_cpu_s=round(b_cpu, 4),
+            baseline_ms_per_frame=round(1000 * b_wall / FRAMES, 3), speedup_vs_baseline=round(b_wall / wall, 3),
+            baseline_max_stretch=round(b_drape.max_stretch(), 5), baseline_max_pen_mm=round(b_drape.max_pen_mm(), 4),
+            baseline_finite=bool(np.all(np.isfinite(b_drape.pos))), baseline_threads=2,
+            baseline_compile_s=round(baseline_compile_s, 3),
+        )
     if args.json:
         print(json.dumps(result))
     else:

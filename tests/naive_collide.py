@@ -88,3 +88,13 @@ def signed_distance(points, verts, tris):
         closest[n] = q[t]
         tri[n] = t
     return d, closest, tri
+
+
+def distances_to_triangles(points, verts, tris):
+    """Unsigned distance (n, t) of every point to every triangle (closest_on_triangles per point)."""
+    a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
+    out = np.empty((len(points), len(tris)))
+    for n, p in enumerate(points):
+        q, _ = closest_on_triangles(p, a, b, c)
+        out[n] = np.sqrt(np.einsum("ij,ij->i", p - q, p - q))
+    return out

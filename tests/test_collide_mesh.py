@@ -271,6 +271,137 @@ def test_update_follows_moved_mesh(sphere):
     np.testing.assert_allclose(q1 - shift, q0, atol=1e-12)
 
 
+def test_refit_matches_rebuild():
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=R)
+    col = MeshCollider(sphere.vertices, sphere.faces, radius=0.2, cell=0.025)
+    origin, dims = col.origin.copy(), col.dims.copy()
+    old_grid = col.grid
+    old_sd = old_grid.cell_sd.copy()
+    rng = np.random.default_rng(8)
+    pts = np.vstack([rng.uniform(-0.2, 0.2, (300, 3)), sphere.vertices[::4] * rng.uniform(0.8, 1.2, (1, 1))])
+    # a small deformation keeps the grid box (and loosens the empty cells' bounds); a large
+    # translation moves it (and recomputes them)
+    bumpy = sphere.vertices * (1.0 + 0.03 * np.sin(7.0 * sphere.vertices[:, :1]))
+    moved = bumpy + [0.4, -0.1, 0.05]
+    for verts, keeps_box in ((bumpy, True), (moved, False), (moved + 0.002 * np.cos(9.0 * moved), True)):
+        col.refit(verts)
+        assert np.array_equal(col.origin, origin) == keeps_box and np.array_equal(col.dims, dims) == keeps_box
+        origin, dims = col.origin.copy(), col.dims.copy()
+        fresh = MeshCollider(verts, sphere.faces, radius=0.2)  # its own cell size
+        q_pts = pts + verts.mean(axis=0)
+        d, q, n, _ = col.query(q_pts)
+        d_ref, q_ref, _, _ = fresh.query(q_pts)
+        within = np.abs(d_ref) < 0.2
+        assert within.sum() > 250
+        np.testing.assert_allclose(d[within], d_ref[within], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(q[within], q_ref[within], rtol=0, atol=1e-12)
+        assert np.all(np.sign(d[~within]) == np.sign(d_ref[~within]))
+        d_naive, _, _ = naive_collide.signed_distance(q_pts[within][::10], col.verts, col.tris)
+        np.testing.assert_allclose(d[within][::10], d_naive, rtol=0, atol=1e-12)
+        _check_grid(col)
+    # the grid taken before the refits is untouched
+    assert np.array_equal(old_grid.cell_sd, old_sd)
+    assert col.grid is not old_grid
+    with pytest.raises(InputError):
+        col.refit(sphere.vertices[:-1])
+
+
+def test_grid_is_a_read_only_body_grid(sphere_col):
+    from vfit_engine.kernels.collide_mesh import BodyGrid
+
+    g = sphere_col.grid
+    assert isinstance(g, BodyGrid)
+    assert g._fields == ("tri_data", "tris", "tri_normals", "tri_edges", "edge_normals", "vert_normals", "origin",
+                         "dims", "h", "margin", "cell_start", "cell_tris", "cell_tdist", "cell_sd")
+    for name in ("tri_data", "tris", "tri_normals", "tri_edges", "edge_normals", "vert_normals", "origin", "dims",
+                 "cell_start", "cell_tris", "cell_tdist", "cell_sd"):
+        assert getattr(g, name).flags.c_contiguous, name
+    assert type(g.h) is float and type(g.margin) is float
+    with pytest.raises(AttributeError):
+        sphere_col.grid = g
+
+
+def _check_grid(col):
+    """The grid against brute force: lists, level floors, centre distances, empty-cell bounds."""
+    g = col.grid
+    nx, ny, nz = g.dims
+    i, j, k = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
+    centres = g.origin + (np.stack([i, j, k], axis=-1).reshape(-1, 3) + 0.5) * g.h
+    reach = g.margin + 0.5 * math.sqrt(3.0) * g.h
+    tris = g.tris  # grid order
+    dist = naive_collide.distances_to_triangles(centres, col.verts, tris)
+    d_ref, _, _ = naive_collide.signed_distance(centres, col.verts, tris)
+    counts = np.diff(g.cell_start)
+    for c in range(len(centres)):
+        listed = g.cell_tris[g.cell_start[c]:g.cell_start[c + 1]]
+        floors = g.cell_tdist[g.cell_start[c]:g.cell_start[c + 1]]
+        # every triangle within reach, nothing beyond (but for the kernel's 1e-9 relative slack)
+        need, allowed = set(np.flatnonzero(dist[c] <= reach - 1e-12)), set(np.flatnonzero(dist[c] <= reach + 1e-8))
+        assert need <= set(listed) <= allowed
+        assert np.all(floors <= dist[c, listed]) and np.all(np.diff(floors) >= 0)
+        assert np.all(dist[c, listed] - floors < reach / 64 + 1e-12)
+    band = counts > 0
+    np.testing.assert_allclose(g.cell_sd[band], d_ref[band], rtol=0, atol=1e-12)
+    assert np.all(np.sign(g.cell_sd[~band]) == np.sign(d_ref[~band]))
+    assert np.all(np.abs(g.cell_sd[~band]) <= np.abs(d_ref[~band]))
+    assert np.all(np.abs(g.cell_sd[~band]) >= reach * (1 - 1e-12))
+
+
+@pytest.mark.parametrize("kind", ["torus", "tetra"])
+def test_grid_against_brute_force(kind):
+    if kind == "torus":  # concave, and an empty region inside the tube
+        mesh = trimesh.creation.torus(major_radius=0.1, minor_radius=0.04, major_sections=12, minor_sections=8)
+    else:
+        mesh = _tetrahedron()
+    col = MeshCollider(mesh.vertices, mesh.faces, cell=0.012)
+    _check_grid(col)
+    # the empty cells' bound is the exact distance to the nearest listed centre, less half a diagonal
+    g = col.grid
+    band = np.diff(g.cell_start) > 0
+    ndimage = pytest.importorskip("scipy.ndimage")
+    edt = ndimage.distance_transform_edt(~band.reshape(tuple(g.dims)), sampling=g.h).ravel()
+    half = 0.5 * math.sqrt(3.0) * g.h
+    np.testing.assert_allclose(np.abs(g.cell_sd[~band]), np.maximum(g.margin + half, edt[~band] - half),
+                               rtol=1e-12, atol=1e-15)
+
+
+def test_mesh_normals_against_loops():
+    from vfit_engine.collide.body_mesh import mesh_normals
+
+    mesh = trimesh.creation.torus(major_radius=0.1, minor_radius=0.035, major_sections=16, minor_sections=9)
+    tri_n, tri_e, edge_n, vert_n = mesh_normals(mesh.vertices, mesh.faces)
+    fn, en, vn = naive_collide.pseudo_normals(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    np.testing.assert_allclose(tri_n, fn, atol=1e-12)
+    np.testing.assert_allclose(vert_n, vn, atol=1e-12)
+    for t, face in enumerate(mesh.faces):
+        for k in range(3):
+            key = tuple(sorted((face[k], face[(k + 1) % 3])))
+            np.testing.assert_allclose(edge_n[tri_e[t, k]], en[key], atol=1e-12)
+    assert len(edge_n) == len(en)
+
+
+def test_region_labels_and_distance_transform_against_scipy():
+    from vfit_engine.kernels import collide_mesh_empty as E
+
+    ndimage = pytest.importorskip("scipy.ndimage")
+    rng = np.random.default_rng(12)
+    dims = np.array([13, 9, 11])
+    band = (rng.random(int(np.prod(dims))) < 0.35).astype(np.uint8)
+    label, parent = np.empty(band.size, np.int32), np.empty(band.size, np.int32)
+    n = E._label_regions(dims, band, label, parent)
+    roots = np.array([E._root(parent, q) for q in range(n)])
+    ref, _ = ndimage.label(band.reshape(tuple(dims)) == 0)
+    empty = band == 0
+    ours = roots[label[empty]]
+    theirs = ref.ravel()[empty]
+    # the same partition: a one-to-one map between the two labellings
+    pairs = set(zip(ours.tolist(), theirs.tolist()))
+    assert len(pairs) == len(set(ours.tolist())) == len(set(theirs.tolist()))
+    d2 = np.empty(band.size)
+    E._band_distance2(dims, band, d2)
+    np.testing.assert_array_equal(d2, np.round(ndimage.distance_transform_edt(empty.reshape(tuple(dims))).ravel() ** 2))
+
+
 def test_deterministic(sphere_col):
     pts = np.random.default_rng(2).uniform(-0.15, 0.15, (500, 3))
     a = sphere_col.query(pts)

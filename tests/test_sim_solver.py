@@ -262,7 +262,7 @@ class _Contacts:
 
     def contact_args(self):
         m = self.mesh
-        return m._mesh_args, m.skin, self.reach, m.friction, self.max_push, self.damping
+        return m.grid, m.skin, self.reach, m.friction, self.max_push, self.damping
 
 
 def _box_body(skin=0.002, friction=0.5):

@@ -2,13 +2,15 @@
 
 Why a uniform grid rather than a BVH: cloth queries are all near the body and the
 body's triangles are all about the same size (hm08: ~1 cm edges), the case a grid
-answers from one cell with no tree descent: a point's own cell lists, sorted by
+answers from one cell with no tree descent: a point's own cell lists, ordered by
 distance to the cell centre, every triangle within ``margin`` of it, and a cell-centre
 signed distance per cell lets points well clear of the body (most cloth, most of the
 time) be dismissed without touching a triangle. A BVH needs ~15 levels of box tests
 per query for the same answer. The price is memory, paid once per body: for hm08 at
-the default 9.8 mm cell, 0.9 M cells and 3.8 M list entries (74 MB), built in ~1 s.
-See :mod:`vfit_engine.kernels.collide_mesh` for the search and why it is exact.
+the default 9.8 mm cell, 0.9 M cells and 3.8 M list entries (74 MB), built in ~0.23 s
+(:mod:`vfit_engine.kernels.collide_mesh_build`); :meth:`MeshCollider.refit` follows a
+moving body for ~25 % less. See :mod:`vfit_engine.kernels.collide_mesh` for the search
+and why it is exact.
 
 The sign comes from the closest feature's angle-weighted pseudo-normal (Baerentzen &
 Aanaes 2005): correct at faces, edges and vertices of a closed mesh, and local
@@ -27,6 +29,8 @@ from vfit_engine.errors import InputError
 _CELL_PER_EDGE = 1.0
 #: ... enlarged until the dense grid has at most this many cells.
 _MAX_CELLS = 8_000_000
+#: Exact band of one cell, in cells (>= sqrt(3): see _layout).
+_MARGIN_PER_CELL = 2.0
 
 
 def _as_points(a, name):
@@ -58,28 +62,14 @@ def mesh_normals(verts, tris):
         Normalised sum of the incident face normals, each weighted by the triangle's
         angle at the vertex.
     """
-    a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
-    n = np.cross(b - a, c - a)
-    ln = np.linalg.norm(n, axis=1)
-    tri_normals = np.divide(n, ln[:, None], out=np.zeros_like(n), where=ln[:, None] > 0)
+    from vfit_engine.kernels import collide_mesh_build as B
 
-    def angle(u, w):
-        return np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), np.einsum("ij,ij->i", u, w))
-
-    vert_normals = np.zeros_like(verts)
-    for k, (u, w) in enumerate(((b - a, c - a), (c - b, a - b), (a - c, b - c))):
-        np.add.at(vert_normals, tris[:, k], angle(u, w)[:, None] * tri_normals)
-
-    half = np.sort(np.stack([tris, np.roll(tris, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    edges, inverse = np.unique(half, axis=0, return_inverse=True)
-    tri_edges = np.ascontiguousarray(inverse.reshape(-1, 3), dtype=np.int64)
-    edge_normals = np.zeros((edges.shape[0], 3))
-    for k in range(3):
-        np.add.at(edge_normals, tri_edges[:, k], tri_normals)
-
-    for arr in (vert_normals, edge_normals):
-        ln = np.linalg.norm(arr, axis=1)
-        np.divide(arr, ln[:, None], out=arr, where=ln[:, None] > 0)
+    verts = np.ascontiguousarray(verts, dtype=np.float64)
+    tris = np.ascontiguousarray(tris, dtype=np.int64)
+    tri_edges = np.empty_like(tris)
+    edge_count = B.mesh_edges(tris, verts.shape[0], tri_edges)
+    tri_normals, edge_normals, vert_normals = np.empty(tris.shape), np.empty((edge_count, 3)), np.empty(verts.shape)
+    B.mesh_normals(verts, tris, tri_edges, tri_normals, edge_normals, vert_normals)
     return tri_normals, tri_edges, edge_normals, vert_normals
 
 
@@ -93,6 +83,25 @@ def _morton_order(points):
         for ax in range(3):
             code |= ((q[:, ax] >> bit) & 1) << (3 * bit + ax)
     return np.argsort(code, kind="stable")
+
+
+def _pair_estimate(area, perimeter, count, reach, h):
+    """Expected (cell, triangle) pairs of the grid, with room to spare: the cells whose centre lies
+    within ``reach`` of a triangle fill its ``reach``-neighbourhood, of volume
+    ``2 A r + (pi / 2) P r^2 + (4 / 3) pi r^3`` (Steiner's formula; A area, P perimeter), summed
+    over the ``count`` triangles."""
+    volume = 2.0 * area * reach + 0.5 * math.pi * perimeter * reach ** 2 + 4.0 / 3.0 * math.pi * reach ** 3 * count
+    return int(1.1 * volume / h ** 3) + 16 * count + 1024
+
+
+def _carve(arena, *parts):
+    """Consecutive views ``(dtype, count)`` of the byte array ``arena``, each 8-byte aligned."""
+    views, at = [], 0
+    for dtype, count in parts:
+        nbytes = np.dtype(dtype).itemsize * count
+        views.append(arena[at:at + nbytes].view(dtype))
+        at += -(-nbytes // 8) * 8
+    return views
 
 
 class MeshCollider:
@@ -118,10 +127,13 @@ class MeshCollider:
 
     Attributes
     ----------
+    grid : BodyGrid
+        The body as the kernels take it (read-only; replaced by :meth:`update` and
+        :meth:`refit`): :data:`vfit_engine.kernels.collide_mesh.BodyGrid`.
     margin : float, m
         A point's own cell holds its closest triangle whenever ``|d| <= margin``.
     cell_start : (ncells + 1,) int64;  cell_tris : (k,) int64
-        Triangles of each cell (CSR).
+        Triangles of each cell (CSR; triangle indices in the grid's order).
     cell_sd : (ncells,) float64, m
         Signed distance of each cell centre (exact for cells with triangles; for empty
         cells a lower bound on its magnitude, with the sign of the cell's region).
@@ -151,92 +163,178 @@ class MeshCollider:
             raise InputError(f"margin must be a positive length in m, got {margin!r}")
         self._cell_request = cell
         self._margin_request = margin
+        from vfit_engine.kernels import collide_mesh_build as B
+
+        # the edge numbering depends on the triangles only: once per collider
+        self.tri_edges = np.empty_like(tris)
+        self._edge_count = B.mesh_edges(tris, verts.shape[0], self.tri_edges)
+        self._vert_count = verts.shape[0]
+        self._pool, self._keep_scratch, self._empty_ref = {}, False, None
         self.update(verts)
 
     # ------------------------------------------------------------------ build
+    @property
+    def grid(self):
+        """The body as the kernels take it (:data:`vfit_engine.kernels.collide_mesh.BodyGrid`).
+
+        A new tuple after every :meth:`update` / :meth:`refit`; its arrays are never modified
+        afterwards, so a grid taken before a refit stays valid (for the old pose).
+        """
+        return self._grid
+
     def update(self, verts):
-        """Rebuild normals and grid for moved vertices (same triangles); ~1 s for the body."""
-        from scipy import ndimage
+        """Rebuild everything for moved vertices (same triangles): triangle order, cell size, grid.
 
-        from vfit_engine.kernels import collide_mesh as K
-
-        verts = _as_points(verts, "verts")
-        self.verts = verts
-        self.tri_normals, self.tri_edges, self.edge_normals, self.vert_normals = mesh_normals(verts, self.tris)
-        corners = verts[self.tris]
+        ~0.23 s for the body (hm08); :meth:`refit` skips what the pose does not change.
+        """
+        verts = self._check_verts(verts)
+        a, b, c = verts[self.tris[:, 0]], verts[self.tris[:, 1]], verts[self.tris[:, 2]]
         # kernels see the triangles in Z-order of their centroids, so the triangles of one
         # cell sit together in memory (queries are bound by memory latency, not arithmetic)
-        order = _morton_order(corners.mean(axis=1))
-        self._tri_order = order
-        tris = np.ascontiguousarray(self.tris[order])
-        corners = corners[order]
-        tri_data = np.zeros((len(tris), 16))
-        tri_data[:, 0:3], tri_data[:, 3:6] = corners.min(axis=1), corners.max(axis=1)
-        tri_data[:, 6:15] = corners.reshape(-1, 9)
-        tri_normals = np.ascontiguousarray(self.tri_normals[order])
-        tri_edges = np.ascontiguousarray(self.tri_edges[order])
-
+        self._set_order(_morton_order((a + b + c) / 3.0))
         lo, hi = verts.min(axis=0), verts.max(axis=0)
         h = self._cell_request
         if h is None:
-            e = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)
-            h = max(_CELL_PER_EDGE * float(e.mean()), 1e-6 * float(np.max(hi - lo)), 1e-9)
-        # margin >= h*sqrt(3): a point not resolved in its own cell is then farther than
-        # h*sqrt(3)/2 from the cell centre's surface side, so the centre's sign is its sign;
-        # 2h also makes the empty-region sign vote below robust
+            edge = sum(float(np.sqrt(np.einsum("ij,ij->i", u - w, u - w)).sum()) for u, w in ((b, a), (c, b), (a, c)))
+            h = max(_CELL_PER_EDGE * edge / (3 * len(a)), 1e-6 * float(np.max(hi - lo)), 1e-9)
         while True:
-            margin = max(2.0 * h, self.skin, self._margin_request or 0.0)
-            pad = margin + 2.0 * h  # the outer layer of cells stays empty
-            dims = np.ceil((hi - lo + 2.0 * pad) / h).astype(np.int64)
+            margin, dims, origin = self._layout(lo, hi, h)
             if self._cell_request is not None or int(np.prod(dims)) <= _MAX_CELLS:
                 break
             h *= (np.prod(dims) / _MAX_CELLS) ** (1.0 / 3.0) * 1.01
+        self.cell, self.margin, self.dims, self.origin = float(h), margin, dims, origin
+        self._fill(verts)
+
+    def refit(self, verts):
+        """Follow moved vertices (same triangles), keeping the triangle order, cell and margin.
+
+        The grid box stays too while the mesh still fits in it with its empty border (a new box
+        gets a cell to spare on each side), and while no vertex has moved more than a cell since
+        the empty cells were last computed exactly, their bounds are those loosened by that
+        distance instead of a new distance transform: ~25 % less than :meth:`update` for the
+        body. Queries answer exactly as after :meth:`update` (the exact band does not depend on
+        the grid); points beyond it are proven far a little less often, and the triangle order
+        and cell size, chosen for the first pose, may suit the new one slightly less well.
+        Replaces :attr:`grid` (fetch it again).
+
+        Parameters
+        ----------
+        verts : (n, 3) float64, m
+            New positions of the same vertices.
+        """
+        verts = self._check_verts(verts)
+        self._keep_scratch = True
+        lo, hi = verts.min(axis=0), verts.max(axis=0)
+        h = self.cell
+        # the outer layer of cells stays empty while the mesh keeps margin + 1.5 h from the box
+        # faces (its centres are then beyond reach = margin + h*sqrt(3)/2)
+        room = self.margin + 1.5 * h
+        top = self.origin + self.dims * h
+        if np.any(lo - self.origin < room) or np.any(top - hi < room):
+            # a new box, with a cell to spare on each side for the next poses
+            margin, dims, origin = self._layout(lo - h, hi + h, h)
+            if self._cell_request is None and int(np.prod(dims)) > _MAX_CELLS:
+                self.update(verts)  # spread too far for this cell: choose a new one
+                return
+            self.margin, self.dims, self.origin = margin, dims, origin
+        self._fill(verts, exact_empty=False)
+
+    def _check_verts(self, verts):
+        verts = _as_points(verts, "verts")
+        if verts.shape[0] != self._vert_count:
+            raise InputError(f"verts must have {self._vert_count} rows (the triangles' vertices), got {verts.shape[0]}")
+        return verts
+
+    def _set_order(self, order):
+        self._tri_order = order
+        self._grid_tris = np.ascontiguousarray(self.tris[order])
+        self._grid_tri_edges = np.ascontiguousarray(self.tri_edges[order])
+
+    def _layout(self, lo, hi, h):
+        """``(margin, dims, origin)`` of a grid of cell ``h`` (m) around the box ``lo``-``hi``."""
+        # margin >= h*sqrt(3): a point not resolved in its own cell is then farther than
+        # h*sqrt(3)/2 from the cell centre's surface side, so the centre's sign is its sign;
+        # 2h also makes the empty-region sign vote robust
+        margin = max(_MARGIN_PER_CELL * h, self.skin, self._margin_request or 0.0)
+        pad = margin + 2.0 * h  # the outer layer of cells stays empty
+        dims = np.ascontiguousarray(np.ceil((hi - lo + 2.0 * pad) / h), dtype=np.int64)
+        return float(margin), dims, np.ascontiguousarray(lo - pad, dtype=np.float64)
+
+    def _fill(self, verts, exact_empty=True):
+        """Normals, triangle records and the grid for ``verts`` on the current layout.
+
+        ``exact_empty=False`` derives the empty cells from the last exact computation when the
+        grid box is the same and no vertex has moved farther than a cell since
+        (:func:`~vfit_engine.kernels.collide_mesh_empty.loosen_empty_sd`).
+        """
+        from vfit_engine.kernels import collide_mesh as K
+        from vfit_engine.kernels import collide_mesh_build as B
+        from vfit_engine.kernels import collide_mesh_empty as E
+
+        nt = self.tris.shape[0]
+        tri_normals, edge_normals = np.empty((nt, 3)), np.empty((self._edge_count, 3))
+        vert_normals = np.empty_like(verts)
+        B.mesh_normals(verts, self.tris, self.tri_edges, tri_normals, edge_normals, vert_normals)
+        self.verts, self.tri_normals = verts, tri_normals
+        self.edge_normals, self.vert_normals = edge_normals, vert_normals
+        tris = self._grid_tris
+        tri_data = np.empty((nt, 16))
+        area, perimeter = B.triangle_records(verts, tris, tri_data)
+
+        h, margin, dims, origin = self.cell, self.margin, self.dims, self.origin
         ncells = int(np.prod(dims))
-        self.cell, self.margin, self.dims = float(h), float(margin), dims
-        self.origin = np.ascontiguousarray(lo - pad, dtype=np.float64)
+        if ncells >= 2 ** 31 - 1:  # the build's scratch indexes cells with int32
+            raise InputError(f"a {h} m cell makes {ncells} grid cells, more than 2^31: choose a larger cell")
         half = 0.5 * math.sqrt(3.0) * h
-        reach = margin + half + 1e-9 * float(np.max(hi - lo) + h)
+        reach = margin + half + 1e-9 * float(np.max(verts.max(axis=0) - verts.min(axis=0)) + h)
+        # one scratch arena: the pairs (9 bytes each, and a byte per pair for cell_lists), then
+        # the empty-cell pass (18 bytes per cell); fresh memory is costly to touch (_scratch)
+        cap = _pair_estimate(area, perimeter, nt, reach, h)
+        while True:
+            arena = self._scratch("arena", max(10 * cap, 18 * ncells) + 64, np.uint8)
+            cap = (arena.size - 64) // 10
+            pair_cell, pair_tri, pair_level, level = _carve(arena, (np.int32, cap), (np.int32, cap), (np.uint8, cap),
+                                                            (np.uint8, cap))
+            n = B.bin_triangles(verts, tris, origin, dims, h, reach, pair_cell, pair_tri, pair_level)
+            if n <= cap:
+                break
+            cap = n
+        cell_start = np.empty(ncells + 1, dtype=np.int64)
+        cell_tris, cell_tdist = np.empty(n, dtype=np.int64), np.empty(n)
+        B.cell_lists(pair_cell[:n], pair_tri[:n], pair_level[:n], reach, cell_start, cell_tris, cell_tdist, level[:n])
 
-        counts = np.zeros(ncells, dtype=np.int64)
-        K.count_cell_tris(verts, tris, self.origin, dims, h, reach, counts)
-        cell_start = np.zeros(ncells + 1, dtype=np.int64)
-        np.cumsum(counts, out=cell_start[1:])
-        cell_tris = np.empty(cell_start[-1], dtype=np.int64)
-        cell_tdist = np.empty(cell_start[-1])
-        K.fill_cell_tris(verts, tris, self.origin, dims, h, reach, cell_start, np.zeros(ncells, dtype=np.int64),
-                         cell_tris, cell_tdist)
-        self.cell_start, self.cell_tris, self.cell_tdist = cell_start, cell_tris, cell_tdist
+        cell_sd = np.empty(ncells)
+        grid = K.BodyGrid(tri_data, tris, np.ascontiguousarray(tri_normals[self._tri_order]), self._grid_tri_edges,
+                          edge_normals, vert_normals, origin, dims, h, margin, cell_start, cell_tris, cell_tdist,
+                          cell_sd)
+        K.cell_centre_sd(np.flatnonzero(cell_start[1:] != cell_start[:-1]), grid, cell_sd)
+        ref, delta = self._empty_ref, np.inf
+        if not exact_empty and ref is not None and np.array_equal(ref[0], dims) and np.array_equal(ref[1], origin):
+            delta = float(np.sqrt(np.max(np.einsum("ij,ij->i", verts - ref[2], verts - ref[2]))))
+        if delta <= h:  # < (margin + half) / 2, as loosen_empty_sd needs
+            # the slack covers the kernels' rounding many times over
+            E.loosen_empty_sd(cell_start, ref[3], delta * (1.0 + 1e-9) + 1e-12, margin + half, cell_sd)
+        else:
+            d2, label, parent, band = _carve(arena, (np.float64, ncells), (np.int32, ncells), (np.int32, ncells),
+                                             (np.uint8, ncells))
+            E.empty_cell_sd(dims, h, margin, cell_start, cell_sd, band, label, parent, d2)
+            self._empty_ref = (dims, origin, verts, cell_sd)  # cell_sd is never modified: no copy
+        self.cell_start, self.cell_tris, self.cell_tdist, self.cell_sd = cell_start, cell_tris, cell_tdist, cell_sd
+        self._grid = grid
 
-        cell_sd = np.zeros(ncells)
-        band_cells = np.flatnonzero(counts)
-        mesh_args = (tri_data, tris, tri_normals, tri_edges, self.edge_normals, self.vert_normals)
-        K.cell_centre_sd(band_cells, *mesh_args, self.origin, dims, h, margin, cell_start, cell_tris, cell_tdist,
-                         np.zeros(ncells), cell_sd)
+    def _scratch(self, name, size, dtype):
+        """At least ``size`` elements of scratch, kept for the next build once :meth:`refit` is used.
 
-        # Empty cells: every point is > margin from the surface, so each connected empty
-        # region lies on one side. Its side is the majority sign of the band cells touching
-        # it (their centres are then > 0.1 h from the surface, so their sign is reliable).
-        band = (counts > 0).reshape(tuple(dims))
-        empty = ~band
-        sd3 = cell_sd.reshape(tuple(dims))
-        labels, n_labels = ndimage.label(empty)
-        votes = np.zeros(n_labels + 1)
-        for ax in range(3):
-            a = [slice(None)] * 3
-            b = [slice(None)] * 3
-            a[ax], b[ax] = slice(0, -1), slice(1, None)
-            a, b = tuple(a), tuple(b)
-            for e_side, b_side in ((a, b), (b, a)):
-                m = empty[e_side] & band[b_side]
-                votes += np.bincount(labels[e_side][m], weights=np.sign(sd3[b_side][m]), minlength=n_labels + 1)
-        region_sign = np.where(votes < 0, -1.0, 1.0)
-        # any surface point's cell is a band cell, so |sd| >= (distance to nearest band centre) - half
-        dist = ndimage.distance_transform_edt(empty, sampling=h)
-        mag = np.maximum(margin + half, dist[empty] - half)
-        sd3[empty] = region_sign[labels[empty]] * mag
-        self.cell_sd = cell_sd
-        self._mesh_args = mesh_args + (self.origin, self.dims, self.cell, self.margin, self.cell_start,
-                                       self.cell_tris, self.cell_tdist, self.cell_sd)
+        First touches of fresh memory cost up to a third of a build on the benchmark machine (a
+        virtual machine); a collider that is never refitted does not hold the scratch (~46 MB
+        for hm08) between builds.
+        """
+        buf = self._pool.get(name)
+        if buf is None or buf.size < size:
+            buf = np.empty(size, dtype=dtype)
+            if self._keep_scratch:
+                self._pool[name] = buf
+        return buf
 
     # ------------------------------------------------------------------ queries
     def query(self, points, max_out=None, max_in=None):
@@ -268,7 +366,7 @@ class MeshCollider:
         n = points.shape[0]
         d, closest, normal = np.empty(n), np.empty((n, 3)), np.empty((n, 3))
         tri = np.empty(n, dtype=np.int64)
-        K.closest_points(points, *self._mesh_args, max_out, max_in, d, closest, normal, tri)
+        K.closest_points(points, self._grid, max_out, max_in, d, closest, normal, tri)
         hit = tri >= 0
         tri[hit] = self._tri_order[tri[hit]]
         return d, closest, normal, tri
@@ -335,5 +433,5 @@ class MeshCollider:
             max_push = np.inf
         elif not max_push > 0:
             raise InputError(f"max_push must be a positive length in m, got {max_push!r}")
-        return project_points(x, x_prev, inv_mass, *self._mesh_args, self.skin, self.friction, self.restitution,
+        return project_points(x, x_prev, inv_mass, self._grid, self.skin, self.friction, self.restitution,
                               float(max_push), np.inf)

@@ -1,15 +1,16 @@
 """Numba kernels for the exact body-mesh collider (signed distance to a triangle mesh).
 
-Acceleration structure (built by :class:`vfit_engine.collide.body_mesh.MeshCollider`):
-a dense uniform grid of cubic cells of edge ``h`` in CSR layout (``cell_start``,
-``cell_tris``). A triangle is listed in every cell whose centre lies within
-``reach = margin + h*sqrt(3)/2`` of the triangle, so a cell lists every triangle
-that comes within ``margin`` of any point of the cell. Hence a point's own cell
-already holds its exact closest triangle whenever the distance is <= margin, and a
-search over the Chebyshev shells k = 0, 1, 2 ... around the point's cell is exact
-once ``best <= k*h + b + margin`` (b: distance from the point to its own cell's
-faces), because a triangle at distance t has a point of its margin-neighbourhood at
-distance max(0, t - margin) from the query point.
+Acceleration structure (:data:`BodyGrid`, built by :class:`vfit_engine.collide.body_mesh.MeshCollider`
+with :mod:`.collide_mesh_build` and :mod:`.collide_mesh_empty`): a dense uniform grid of cubic
+cells of edge ``h`` in CSR layout (``cell_start``, ``cell_tris``). A triangle is listed in
+every cell whose centre lies within ``reach = margin + h*sqrt(3)/2`` of the triangle, so a
+cell lists every triangle that comes within ``margin`` of any point of the cell. Hence a
+point's own cell already holds its exact closest triangle whenever the distance is <= margin,
+and a search over the Chebyshev shells k = 0, 1, 2 ... around the point's cell is exact once
+``best <= k*h + b + margin`` (b: distance from the point to its own cell's faces), because a
+triangle at distance t has a point of its margin-neighbourhood at distance max(0, t - margin)
+from the query point; or once ``best <= reach - |p - c|`` (c the own cell's centre: an unlisted
+triangle is farther than reach from c), which is never later and often a shell earlier.
 
 ``cell_sd`` holds the signed distance of every cell centre (exact for cells with
 triangles, a lower bound on the magnitude with the right sign for empty cells), so
@@ -30,10 +31,32 @@ The kernels are serial: on the 2-core benchmark machine ``parallel=True`` made
 memory latency), and the cloth solver around it has its own threads.
 """
 import math
+from collections import namedtuple
 
 import numpy as np
 
 from vfit_engine._jit import njit
+
+#: The body grid as every kernel takes it (:attr:`vfit_engine.collide.body_mesh.MeshCollider.grid`).
+#: Triangles are in the grid's own (Z-curve) order, ``t`` below:
+#:
+#: * tri_data (t, 16) float64, m: per triangle bounding box min xyz, max xyz, corners a, b, c and one
+#:   pad: one 128-byte record, so a triangle costs two cache lines;
+#: * tris (t, 3) int64: vertex indices (for the vertex pseudo-normals);
+#: * tri_normals (t, 3) float64: unit face normals (zero for a zero-area triangle);
+#: * tri_edges (t, 3) int64: edge index of (v0 v1), (v1 v2), (v2 v0);
+#: * edge_normals (e, 3), vert_normals (v, 3) float64: angle-weighted pseudo-normals (Baerentzen &
+#:   Aanaes 2005);
+#: * origin (3,) float64, m; dims (3,) int64; h, margin float, m: grid corner, cell counts, cell edge
+#:   and the exact band of one cell (cell ``(i, j, k)`` is ``(i * ny + j) * nz + k``);
+#: * cell_start (nx*ny*nz + 1,) int64; cell_tris (m,) int64; cell_tdist (m,) float64, m: CSR
+#:   triangle lists; ``cell_tdist`` is a lower bound on the triangle's distance to the cell centre
+#:   (the floor of its distance level, reach / 64 wide: :mod:`.collide_mesh_build`), never decreasing along a list;
+#: * cell_sd (nx*ny*nz,) float64, m: signed distance of each cell centre (exact where the cell
+#:   lists triangles, else a lower bound on the magnitude with the right sign).
+BodyGrid = namedtuple("BodyGrid", ["tri_data", "tris", "tri_normals", "tri_edges", "edge_normals", "vert_normals",
+                                   "origin", "dims", "h", "margin", "cell_start", "cell_tris", "cell_tdist",
+                                   "cell_sd"])
 
 # feature codes returned by _closest_on_triangle
 _FACE = 0  # 1, 2, 3: vertex 0, 1, 2; 4, 5, 6: edge 0 (v0 v1), 1 (v1 v2), 2 (v2 v0)
@@ -113,13 +136,13 @@ def _closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     return qx, qy, qz, f
 
 
-@njit
-def _scan_cell(px, py, pz, c, gap, tri_data, cell_start, cell_tris, cell_tdist,
-               best2, best_t, best_f, bqx, bqy, bqz):
+@njit(inline="always")
+def _scan_cell(px, py, pz, c, gap, tri_data, cell_start, cell_tris, cell_tdist, best2, best_t, best_f, bqx, bqy, bqz):
     """Test the triangles of cell ``c`` against the current best (squared distance).
 
-    The list is sorted by distance to the cell centre, and ``gap`` >= |p - centre|, so
-    ``dist(p, T) >= cell_tdist - gap`` ends the scan at the first triangle that cannot win.
+    ``cell_tdist`` bounds the distance to the cell centre from below and never decreases
+    along the list, and ``gap`` >= |p - centre|, so ``dist(p, T) >= cell_tdist - gap`` ends the
+    scan at the first triangle from which on none can win.
     """
     best = math.sqrt(best2)
     for s in range(cell_start[c], cell_start[c + 1]):
@@ -142,18 +165,59 @@ def _scan_cell(px, py, pz, c, gap, tri_data, cell_start, cell_tris, cell_tdist,
     return best2, best_t, best_f, bqx, bqy, bqz
 
 
+@njit(inline="always")
+def _signed_result(px, py, pz, qx, qy, qz, best2, t, f, tris, tri_normals, tri_edges, edge_normals, vert_normals):
+    """``(d, qx, qy, qz, nx, ny, nz, t)`` of point p whose closest point q lies on feature f of triangle t.
+
+    The sign is that of ``(p - q) . n`` with n the feature's pseudo-normal (module docstring).
+    """
+    if f == _FACE:
+        fnx, fny, fnz = tri_normals[t, 0], tri_normals[t, 1], tri_normals[t, 2]
+    elif f <= 3:
+        v = tris[t, f - 1]
+        fnx, fny, fnz = vert_normals[v, 0], vert_normals[v, 1], vert_normals[v, 2]
+    else:
+        e = tri_edges[t, f - 4]
+        fnx, fny, fnz = edge_normals[e, 0], edge_normals[e, 1], edge_normals[e, 2]
+    wx, wy, wz = px - qx, py - qy, pz - qz
+    dist = math.sqrt(best2)
+    sgn = -1.0 if wx * fnx + wy * fny + wz * fnz < 0.0 else 1.0
+    if dist > DIRECTION_EPS:
+        inv = sgn / dist
+        nx, ny, nz = wx * inv, wy * inv, wz * inv
+    else:
+        nx, ny, nz = fnx, fny, fnz
+    return sgn * dist, qx, qy, qz, nx, ny, nz, t
+
+
 @njit
-def _query_point(px, py, pz, tri_data, tris, tri_normals, tri_edges, edge_normals, vert_normals,
-                 origin, dims, h, margin, cell_start, cell_tris, cell_tdist, cell_sd, trust_sd, max_out, max_in):
+def _query_point(px, py, pz, grid, trust_sd, max_out, max_in):
     """Signed distance of one point by the shell search described in the module docstring.
 
-    Exact when ``-max_in < d < max_out``; a point proven outside that band returns
-    ``d = +inf`` (outside) or ``-inf`` (inside) with ``tri = -1``.
+    Parameters
+    ----------
+    px, py, pz : float, m
+    grid : BodyGrid
+    trust_sd : bool
+        Use the cell centre's exact distance as a first bound (True for every caller but
+        tests of the search itself).
+    max_out, max_in : float, m
+        Exact when ``-max_in < d < max_out``; a point proven outside that band returns
+        ``d = +inf`` (outside) or ``-inf`` (inside) with ``tri = -1``.
 
-    Returns ``(d, qx, qy, qz, nx, ny, nz, tri)``: signed distance (m, negative inside),
-    closest point, unit outward normal (direction from q to p times the sign, the
-    pseudo-normal when |d| < DIRECTION_EPS) and triangle index.
+    Returns
+    -------
+    tuple
+        ``(d, qx, qy, qz, nx, ny, nz, tri)``: signed distance (m, negative inside), closest
+        point, unit outward normal (direction from q to p times the sign, the pseudo-normal
+        when |d| < DIRECTION_EPS) and triangle index (grid order).
     """
+    # the helpers below are inlined (inline="always"): a call taking arrays costs reference
+    # counting, which made every query ~40 % slower when the grid was passed on to them
+    tri_data, tris, tri_normals, tri_edges = grid.tri_data, grid.tris, grid.tri_normals, grid.tri_edges
+    edge_normals, vert_normals = grid.edge_normals, grid.vert_normals
+    origin, dims, h, margin = grid.origin, grid.dims, grid.h, grid.margin
+    cell_start, cell_tris, cell_tdist, cell_sd = grid.cell_start, grid.cell_tris, grid.cell_tdist, grid.cell_sd
     nx_, ny_, nz_ = dims[0], dims[1], dims[2]
     half = 0.5 * math.sqrt(3.0) * h
     # clamp into the grid box; outside it |p - y|^2 >= |p - p'|^2 + |p' - y|^2 for every y in the box
@@ -191,6 +255,12 @@ def _query_point(px, py, pz, tri_data, tris, tri_normals, tri_edges, edge_normal
         cap = min(cap, abs(s) + half * (1.0 + 1e-9))
     b = min(fx - i, i + 1 - fx, fy - j, j + 1 - fy, fz - k, k + 1 - fz) * h
     b = max(b, 0.0)
+    # the own cell lists every triangle within margin + half of its centre, so an unlisted one is
+    # farther than margin + half - |p - centre| from p: at least as good a stop as the shells' b + margin
+    ox = origin[0] + (i + 0.5) * h - px
+    oy = origin[1] + (j + 0.5) * h - py
+    oz = origin[2] + (k + 0.5) * h - pz
+    own = margin + half - math.sqrt(ox * ox + oy * oy + oz * oz)
     best2, best_t, best_f = cap * cap, -1, -1
     qx, qy, qz = np.nan, np.nan, np.nan
     kmax = max(nx_, ny_, nz_)
@@ -220,65 +290,34 @@ def _query_point(px, py, pz, tri_data, tris, tri_normals, tri_edges, edge_normal
                         px, py, pz, cc, gap, tri_data, cell_start, cell_tris, cell_tdist,
                         best2, best_t, best_f, qx, qy, qz)
         reach_k = ring * h + b
-        bound = math.sqrt(g2 + reach_k * reach_k) + margin  # no unvisited triangle is closer
+        bound = max(math.sqrt(g2 + reach_k * reach_k) + margin, own)  # no unvisited triangle is closer
         if best2 <= bound * bound or ring > kmax:
             break
         ring += 1
     if best_t < 0:
         return far_in if s < 0.0 and g2 == 0.0 else far_out
-    # pseudo-normal of the closest feature
-    if best_f == _FACE:
-        fnx, fny, fnz = tri_normals[best_t, 0], tri_normals[best_t, 1], tri_normals[best_t, 2]
-    elif best_f <= 3:
-        v = tris[best_t, best_f - 1]
-        fnx, fny, fnz = vert_normals[v, 0], vert_normals[v, 1], vert_normals[v, 2]
-    else:
-        e = tri_edges[best_t, best_f - 4]
-        fnx, fny, fnz = edge_normals[e, 0], edge_normals[e, 1], edge_normals[e, 2]
-    wx, wy, wz = px - qx, py - qy, pz - qz
-    dist = math.sqrt(best2)
-    sgn = -1.0 if wx * fnx + wy * fny + wz * fnz < 0.0 else 1.0
-    if dist > DIRECTION_EPS:
-        inv = sgn / dist
-        nx, ny, nz = wx * inv, wy * inv, wz * inv
-    else:
-        nx, ny, nz = fnx, fny, fnz
-    return sgn * dist, qx, qy, qz, nx, ny, nz, best_t
+    return _signed_result(px, py, pz, qx, qy, qz, best2, best_t, best_f, tris, tri_normals, tri_edges,
+                          edge_normals, vert_normals)
 
 
 @njit
-def closest_points(points, tri_data, tris, tri_normals, tri_edges, edge_normals, vert_normals,
-                   origin, dims, h, margin, cell_start, cell_tris, cell_tdist, cell_sd, max_out, max_in,
-                   d_out, closest_out, normal_out, tri_out):
+def closest_points(points, grid, max_out, max_in, d_out, closest_out, normal_out, tri_out):
     """Signed distance, closest point, outward normal and triangle of every point.
 
     Parameters
     ----------
     points : (n, 3) float64, m
-    tri_data : (t, 16) float64, m
-        Per triangle: bounding box min xyz, max xyz, corners a, b, c, one pad: one
-        128-byte record, so a triangle costs two cache lines.
-    tris : (t, 3) int64
-        Vertex indices of each triangle (for the vertex pseudo-normals).
-    tri_normals : (t, 3), edge_normals : (e, 3), vert_normals : (v, 3) float64
-        Unit face normals and angle-weighted pseudo-normals (Baerentzen & Aanaes 2005).
-    tri_edges : (t, 3) int64
-        Edge index of (v0 v1), (v1 v2), (v2 v0).
-    origin : (3,) float64, m;  dims : (3,) int64;  h, margin : float, m
-        Grid corner, cell counts, cell edge and exact band of one cell.
-    cell_start : (nx*ny*nz + 1,) int64;  cell_tris : (m,) int64;  cell_sd : (nx*ny*nz,) float64, m
-        CSR triangle lists and cell-centre signed distances.
+    grid : BodyGrid
+        The body (module docstring and :data:`BodyGrid`).
     max_out, max_in : float, m
         Band of interest: exact for ``-max_in < d < max_out``; beyond it a point may be
         reported as ``+inf`` / ``-inf`` (closest NaN, normal 0, tri -1).
     d_out : (n,), closest_out : (n, 3), normal_out : (n, 3) float64;  tri_out : (n,) int64
-        Outputs; d is negative inside.
+        Outputs; d (m) is negative inside; tri in the grid's triangle order.
     """
     for p in range(points.shape[0]):
-        d, qx, qy, qz, nx, ny, nz, t = _query_point(
-            points[p, 0], points[p, 1], points[p, 2], tri_data, tris, tri_normals, tri_edges,
-            edge_normals, vert_normals, origin, dims, h, margin, cell_start, cell_tris, cell_tdist, cell_sd, True,
-            max_out, max_in)
+        d, qx, qy, qz, nx, ny, nz, t = _query_point(points[p, 0], points[p, 1], points[p, 2], grid, True,
+                                                    max_out, max_in)
         d_out[p] = d
         closest_out[p, 0], closest_out[p, 1], closest_out[p, 2] = qx, qy, qz
         normal_out[p, 0], normal_out[p, 1], normal_out[p, 2] = nx, ny, nz
@@ -286,9 +325,7 @@ def closest_points(points, tri_data, tris, tri_normals, tri_edges, edge_normals,
 
 
 @njit
-def project_points(x, x_prev, inv_mass, tri_data, tris, tri_normals, tri_edges, edge_normals,
-                   vert_normals, origin, dims, h, margin, cell_start, cell_tris, cell_tdist, cell_sd,
-                   skin, friction, restitution, max_push, max_in):
+def project_points(x, x_prev, inv_mass, grid, skin, friction, restitution, max_push, max_in):
     """Push particles out of the body to ``skin`` and apply restitution and friction (in place).
 
     For each particle with ``inv_mass > 0`` and signed distance ``d < skin``:
@@ -306,11 +343,11 @@ def project_points(x, x_prev, inv_mass, tri_data, tris, tri_normals, tri_edges, 
         Positions and previous positions, modified in place.
     inv_mass : (n,) float64, 1/kg
         Particles with ``inv_mass <= 0`` are pinned and never touched.
+    grid : BodyGrid
     skin, friction, restitution, max_push, max_in : float
         Offset (m), Coulomb coefficient, coefficient of restitution, the longest
         correction per call (m, inf for none) and the depth (m) beyond which an inside
         particle is left alone (inf: always searched).
-    (mesh and grid arrays as in :func:`closest_points`)
 
     Returns
     -------
@@ -322,9 +359,7 @@ def project_points(x, x_prev, inv_mass, tri_data, tris, tri_normals, tri_edges, 
         if inv_mass[p] <= 0.0:
             continue
         px, py, pz = x[p, 0], x[p, 1], x[p, 2]
-        d, qx, qy, qz, nx, ny, nz, t = _query_point(
-            px, py, pz, tri_data, tris, tri_normals, tri_edges, edge_normals, vert_normals,
-            origin, dims, h, margin, cell_start, cell_tris, cell_tdist, cell_sd, True, skin, max_in)
+        d, qx, qy, qz, nx, ny, nz, t = _query_point(px, py, pz, grid, True, skin, max_in)
         # the relative tolerance keeps particles already at the skin (to rounding) from re-counting
         if t < 0 or not d < skin * (1.0 - 1e-9):
             continue
@@ -352,96 +387,33 @@ def project_points(x, x_prev, inv_mass, tri_data, tris, tri_normals, tri_edges, 
 
 
 @njit
-def count_cell_tris(verts, tris, origin, dims, h, reach, counts_out):
-    """Number of triangles within ``reach`` (m) of each cell centre (counts_out (ncells,) int64, added to)."""
-    ny_, nz_ = dims[1], dims[2]
-    r2 = reach * reach
-    for t in range(tris.shape[0]):
-        a, b, c = tris[t, 0], tris[t, 1], tris[t, 2]
-        i0, i1, j0, j1, k0, k1 = _cell_range(verts, a, b, c, origin, dims, h, reach)
-        for i in range(i0, i1 + 1):
-            for j in range(j0, j1 + 1):
-                for k in range(k0, k1 + 1):
-                    if _centre_dist2(verts, a, b, c, origin, h, i, j, k) <= r2:
-                        counts_out[(i * ny_ + j) * nz_ + k] += 1
+def cell_centre_sd(cells, grid, cell_sd_out):
+    """Exact signed distance of the centres of ``cells`` (k,) int64, written to ``cell_sd_out`` (ncells,) m.
 
-
-@njit
-def fill_cell_tris(verts, tris, origin, dims, h, reach, cell_start, cursor_out, cell_tris_out, cell_tdist_out):
-    """CSR fill matching :func:`count_cell_tris`, each list sorted by distance to the cell centre.
-
-    ``cursor_out`` (ncells,) int64 zeroed by the caller; ``cell_tdist_out`` (m,) float64, m.
+    Every cell of ``cells`` must list triangles. Its list holds every triangle within
+    ``margin + h*sqrt(3)/2`` of the centre, ordered by distance level, so the centre's closest
+    triangle is among those of the first level (``grid.cell_sd`` is not read).
     """
-    ny_, nz_ = dims[1], dims[2]
-    r2 = reach * reach
-    for t in range(tris.shape[0]):
-        a, b, c = tris[t, 0], tris[t, 1], tris[t, 2]
-        i0, i1, j0, j1, k0, k1 = _cell_range(verts, a, b, c, origin, dims, h, reach)
-        for i in range(i0, i1 + 1):
-            for j in range(j0, j1 + 1):
-                for k in range(k0, k1 + 1):
-                    dd = _centre_dist2(verts, a, b, c, origin, h, i, j, k)
-                    if dd <= r2:
-                        cc = (i * ny_ + j) * nz_ + k
-                        slot = cell_start[cc] + cursor_out[cc]
-                        cell_tris_out[slot] = t
-                        cell_tdist_out[slot] = math.sqrt(dd)
-                        cursor_out[cc] += 1
-    _sort_cells(cell_start, cell_tris_out, cell_tdist_out)
-
-
-@njit
-def _sort_cells(cell_start, cell_tris, cell_tdist):
-    for c in range(cell_start.shape[0] - 1):
-        a, b = cell_start[c], cell_start[c + 1]
-        if b - a > 1:
-            order = np.argsort(cell_tdist[a:b], kind="mergesort")
-            cell_tris[a:b] = cell_tris[a:b][order]
-            cell_tdist[a:b] = cell_tdist[a:b][order]
-
-
-@njit
-def _cell_range(verts, a, b, c, origin, dims, h, reach):
-    """Cells whose centre lies in the triangle's bounding box grown by ``reach``."""
-    r0 = _axis_range(verts[a, 0], verts[b, 0], verts[c, 0], origin[0], dims[0], h, reach)
-    r1 = _axis_range(verts[a, 1], verts[b, 1], verts[c, 1], origin[1], dims[1], h, reach)
-    r2 = _axis_range(verts[a, 2], verts[b, 2], verts[c, 2], origin[2], dims[2], h, reach)
-    return r0[0], r0[1], r1[0], r1[1], r2[0], r2[1]
-
-
-@njit
-def _axis_range(u, v, w, o, n, h, reach):
-    lo = max(int(math.ceil((min(u, v, w) - reach - o) / h - 0.5)), 0)
-    hi = min(int(math.floor((max(u, v, w) + reach - o) / h - 0.5)), n - 1)
-    return lo, hi
-
-
-@njit
-def _centre_dist2(verts, a, b, c, origin, h, i, j, k):
-    px = origin[0] + (i + 0.5) * h
-    py = origin[1] + (j + 0.5) * h
-    pz = origin[2] + (k + 0.5) * h
-    qx, qy, qz, f = _closest_on_triangle(px, py, pz, verts[a, 0], verts[a, 1], verts[a, 2],
-                                         verts[b, 0], verts[b, 1], verts[b, 2], verts[c, 0], verts[c, 1], verts[c, 2])
-    return (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
-
-
-@njit
-def cell_centre_sd(cells, tri_data, tris, tri_normals, tri_edges, edge_normals, vert_normals,
-                   origin, dims, h, margin, cell_start, cell_tris, cell_tdist, zeros, cell_sd_out):
-    """Exact signed distance of the centres of ``cells`` (k,) int64, written to ``cell_sd_out``.
-
-    ``zeros`` (ncells,) float64 all zero stands in for ``cell_sd``: it disables the
-    culling of :func:`_query_point`, so the shell search runs to the exact answer.
-    """
-    ny_, nz_ = dims[1], dims[2]
+    origin, h = grid.origin, grid.h
+    ny_, nz_ = grid.dims[1], grid.dims[2]
+    tri_data, cell_start, cell_tris, cell_tdist = grid.tri_data, grid.cell_start, grid.cell_tris, grid.cell_tdist
     for m in range(cells.shape[0]):
         cc = cells[m]
         i = cc // (ny_ * nz_)
         j = (cc // nz_) % ny_
         k = cc % nz_
-        d, qx, qy, qz, nx, ny, nz, t = _query_point(
-            origin[0] + (i + 0.5) * h, origin[1] + (j + 0.5) * h, origin[2] + (k + 0.5) * h,
-            tri_data, tris, tri_normals, tri_edges, edge_normals, vert_normals,
-            origin, dims, h, margin, cell_start, cell_tris, cell_tdist, zeros, False, np.inf, np.inf)
-        cell_sd_out[cc] = d
+        px, py, pz = origin[0] + (i + 0.5) * h, origin[1] + (j + 0.5) * h, origin[2] + (k + 0.5) * h
+        a = cell_start[cc]
+        best2, best_t, best_f, bqx, bqy, bqz = np.inf, -1, -1, np.nan, np.nan, np.nan
+        for s in range(a, cell_start[cc + 1]):
+            if cell_tdist[s] > cell_tdist[a]:
+                break
+            t = cell_tris[s]
+            qx, qy, qz, f = _closest_on_triangle(px, py, pz, tri_data[t, 6], tri_data[t, 7], tri_data[t, 8],
+                                                 tri_data[t, 9], tri_data[t, 10], tri_data[t, 11],
+                                                 tri_data[t, 12], tri_data[t, 13], tri_data[t, 14])
+            dd = (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
+            if dd < best2:
+                best2, best_t, best_f, bqx, bqy, bqz = dd, t, f, qx, qy, qz
+        cell_sd_out[cc] = _signed_result(px, py, pz, bqx, bqy, bqz, best2, best_t, best_f, grid.tris,
+                                         grid.tri_normals, grid.tri_edges, grid.edge_normals, grid.vert_normals)[0]

@@ -43,9 +43,7 @@ from vfit_engine.kernels.strain_limit import _limit_spring
 
 @njit
 def drape_substeps(x, xp, inv_mass, gravity, si, sj, rest, k, kd, lim_i, lim_j, lim_len, iterations, omega,
-                   pin_idx, pin_from, pin_to, dt, c_air, sub_begin, sub_end, sub_total,
-                   tri_data, tris, tri_normals, tri_edges, edge_normals, vert_normals,
-                   origin, dims, h, margin, cell_start, cell_tris, cell_tdist, cell_sd,
+                   pin_idx, pin_from, pin_to, dt, c_air, sub_begin, sub_end, sub_total, grid,
                    skin, reach, friction, max_push, c_contact, reuse,
                    x_last, d_last, c_n, c_nq, c_h, c_push, c_list, f):
     """Substeps ``sub_begin .. sub_end - 1`` of ``sub_total`` (module docstring); returns mesh queries made.
@@ -66,8 +64,8 @@ def drape_substeps(x, xp, inv_mass, gravity, si, sj, rest, k, kd, lim_i, lim_j, 
         (end of substep ``sub_total - 1``).
     dt : float, s;  c_air : float
         Substep and air damping per step.
-    tri_data ... cell_sd
-        The body grid (:func:`vfit_engine.kernels.collide_mesh.closest_points`).
+    grid : BodyGrid
+        The body (:data:`vfit_engine.kernels.collide_mesh.BodyGrid`).
     skin, reach : float, m
         Clearance kept from the body; contacts are made for particles within ``skin + reach``.
     friction : float;  max_push : float, m
@@ -116,9 +114,7 @@ def drape_substeps(x, xp, inv_mass, gravity, si, sj, rest, k, kd, lim_i, lim_j, 
                 c_list[n_contacts] = i
                 n_contacts += 1
                 continue
-            d, qx, qy, qz, nx, ny, nz, t = _query_point(
-                x[i, 0], x[i, 1], x[i, 2], tri_data, tris, tri_normals, tri_edges, edge_normals, vert_normals,
-                origin, dims, h, margin, cell_start, cell_tris, cell_tdist, cell_sd, True, query_out, math.inf)
+            d, qx, qy, qz, nx, ny, nz, t = _query_point(x[i, 0], x[i, 1], x[i, 2], grid, True, query_out, math.inf)
             queries += 1
             x_last[i, 0], x_last[i, 1], x_last[i, 2] = x[i, 0], x[i, 1], x[i, 2]
             if t < 0:

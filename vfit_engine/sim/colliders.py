@@ -33,7 +33,7 @@ class RampedMesh:
 
     def contact_args(self):
         m = self.mesh
-        return m._mesh_args, m.skin, self.reach, m.friction, self.max_push, self.damping
+        return m.grid, m.skin, self.reach, m.friction, self.max_push, self.damping
 
     def project(self, x, x_prev, inv_mass):
         t0 = time.perf_counter()
