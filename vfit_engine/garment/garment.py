@@ -54,6 +54,31 @@ class Garment:
         """(n, 3) float64 vertex positions, m."""
         return self.mesh.verts
 
+    def binding(self):
+        """The ``.mhclo`` beside the file when it binds exactly this garment's vertices, else None.
+
+        A binding that cannot be read or binds another vertex count is left out with a warning
+        (``warnings``): the garment is then treated as one without a binding.
+        """
+        if getattr(self, "_binding", False) is not False:
+            return self._binding
+        from vfit_engine.errors import InputError
+        from vfit_engine.garment.mhclo import parse_mhclo
+
+        self._binding = None
+        if self.mhclo_path is not None:
+            try:
+                b = parse_mhclo(self.mhclo_path)
+            except (InputError, OSError, ValueError) as exc:
+                self.warnings.append(f"ignored its binding: {exc}")
+            else:
+                if b.n_verts == self.mesh.n_verts:
+                    self._binding = b
+                else:
+                    self.warnings.append(f"ignored {self.mhclo_path.name}: it binds {b.n_verts} vertices, the "
+                                         f"garment has {self.mesh.n_verts}")
+        return self._binding
+
 
 def choose_units(height, body_height_m=None):
     """Guess the unit of a garment whose bounding-box height (Y extent) is ``height`` file units.

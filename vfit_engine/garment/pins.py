@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from vfit_engine.body.levels import Sections, body_center_xz, body_levels
+from vfit_engine.errors import InputError
 from vfit_engine.geometry import boundary_loops, vertex_normals, winding_number
 
 #: Smallest Y component of the body normal counted as "facing up" in the shoulder region.
@@ -225,3 +226,36 @@ def attached_positions(tri_idx, bary, body_verts, body_tris):
     v = np.asarray(body_verts, dtype=np.float64)
     t = np.asarray(body_tris, dtype=np.int64)[np.asarray(tri_idx, dtype=np.int64)]
     return np.einsum("ij,ijk->ik", np.asarray(bary, dtype=np.float64), v[t])
+
+
+def read_pin_file(path, vertex_count):
+    """Garment vertex indices (0-based, one per line; blank lines and ``#`` comments skipped).
+
+    Raises
+    ------
+    InputError
+        Unreadable file, a line that is not an integer, an index outside ``0..vertex_count-1``, or no
+        index at all.
+    """
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            lines = f.read().splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read pin file {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    out = []
+    for no, line in enumerate(lines, 1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        try:
+            value = int(text)
+        except ValueError:
+            raise InputError(f"pin file {path}, line {no}: {text!r} is not a vertex index") from None
+        if not 0 <= value < vertex_count:
+            raise InputError(f"pin file {path}, line {no}: vertex {value} does not exist "
+                             f"(garment has {vertex_count})")
+        out.append(value)
+    if not out:
+        raise InputError(f"pin file {path} lists no vertex: give garment vertex indices (0-based, one per line) "
+                         "or use --pin none")
+    return np.unique(np.array(out, dtype=np.int64))

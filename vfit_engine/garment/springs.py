@@ -280,33 +280,16 @@ def spring_constants(springs, stiffness, damping):
     return stiffness[springs.type] * scale, damping[springs.type] * scale
 
 
-def vertex_spring_adjacency(vertex_count, spring_indices):
-    """CSR list of the springs at every vertex, to gather forces without races.
+def polygon_corners(face_verts, face_offsets):
+    """The corners of polygons with 4 or more corners: (k, 3) int64 rows (previous, corner, next).
 
-    Parameters
-    ----------
-    vertex_count : int
-    spring_indices : (s, 2) int64
-
-    Returns
-    -------
-    offsets : (n + 1,) int64
-        Vertex ``i``'s entries are ``offsets[i]:offsets[i + 1]``.
-    other : (2 s,) int64
-        The vertex at the other end of each entry's spring.
-    spring : (2 s,) int64
-        The spring index of each entry (ascending within a vertex).
+    Their angles are what shear changes (a triangle's angles are fixed by its three edges).
     """
-    si = np.ascontiguousarray(spring_indices, dtype=np.int64).reshape(-1, 2)
-    s = si.shape[0]
-    owner = np.concatenate([si[:, 0], si[:, 1]])
-    other = np.concatenate([si[:, 1], si[:, 0]])
-    spring = np.concatenate([np.arange(s), np.arange(s)]).astype(np.int64)
-    order = np.lexsort((spring, owner))
-    counts = np.bincount(owner, minlength=vertex_count)
-    offsets = np.zeros(vertex_count + 1, dtype=np.int64)
-    np.cumsum(counts, out=offsets[1:])
-    return offsets, np.ascontiguousarray(other[order]), np.ascontiguousarray(spring[order])
+    fv = np.asarray(face_verts, dtype=np.int64)
+    fo = np.asarray(face_offsets, dtype=np.int64)
+    face, _, nxt, prv = _corner_tables(fo)
+    keep = np.diff(fo)[face] >= 4
+    return np.ascontiguousarray(np.stack([fv[prv], fv, fv[nxt]], axis=1)[keep])
 
 
 def grid_polygons(nx, ny, size_x=1.0, size_y=1.0, quads=True):

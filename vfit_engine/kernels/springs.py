@@ -10,50 +10,14 @@ For a spring (i, j) with rest length ``l0``, stiffness ``k`` and damping ``kd``:
 cloth behavior"; Baraff & Witkin 1998 for the damping along the spring.) The pair
 of forces sums to zero and acts along the spring axis.
 
-Two forms: a serial scatter over springs (:func:`eval_spring_forces`) and a
-race-free gather over each vertex's springs in CSR order
-(:func:`_vertex_spring_force`, used by the fused substep kernel in
-:mod:`vfit_engine.kernels.integrate`, which may run it under ``prange``).
+The forces are scattered spring by spring onto both ends, serially (:func:`_spring_forces`, which
+the cloth kernel :mod:`vfit_engine.kernels.cloth` inlines; :func:`eval_spring_forces` for callers).
 """
 import math
 
 import numpy as np
 
 from vfit_engine._jit import njit
-
-
-@njit
-def _vertex_spring_force(x, xp, inv_dt, i, adj_off, adj_j, adj_rest, adj_k, adj_kd):
-    """Sum of the spring forces on vertex ``i`` over its CSR entries; returns (fx, fy, fz), N."""
-    xi0 = x[i, 0]
-    xi1 = x[i, 1]
-    xi2 = x[i, 2]
-    vi0 = (xi0 - xp[i, 0]) * inv_dt
-    vi1 = (xi1 - xp[i, 1]) * inv_dt
-    vi2 = (xi2 - xp[i, 2]) * inv_dt
-    f0 = 0.0
-    f1 = 0.0
-    f2 = 0.0
-    for a in range(adj_off[i], adj_off[i + 1]):
-        j = adj_j[a]
-        d0 = x[j, 0] - xi0
-        d1 = x[j, 1] - xi1
-        d2 = x[j, 2] - xi2
-        length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length <= 0.0:
-            continue  # coincident ends: no direction, no force
-        inv_l = 1.0 / length
-        u0 = d0 * inv_l
-        u1 = d1 * inv_l
-        u2 = d2 * inv_l
-        vr = (((x[j, 0] - xp[j, 0]) * inv_dt - vi0) * u0
-              + ((x[j, 1] - xp[j, 1]) * inv_dt - vi1) * u1
-              + ((x[j, 2] - xp[j, 2]) * inv_dt - vi2) * u2)
-        fs = adj_k[a] * (length - adj_rest[a]) + adj_kd[a] * vr
-        f0 += fs * u0
-        f1 += fs * u1
-        f2 += fs * u2
-    return f0, f1, f2
 
 
 @njit
@@ -88,16 +52,6 @@ def _spring_forces(x, xp, inv_dt, si, sj, rest, k, kd, f_out):
         f_out[j, 2] -= fs * u2
 
 
-@njit
-def _spring_forces_gather(x, xp, inv_dt, adj_off, adj_j, adj_rest, adj_k, adj_kd, f_out):
-    """The same forces gathered per vertex from a CSR adjacency, N."""
-    for i in range(x.shape[0]):
-        f0, f1, f2 = _vertex_spring_force(x, xp, inv_dt, i, adj_off, adj_j, adj_rest, adj_k, adj_kd)
-        f_out[i, 0] = f0
-        f_out[i, 1] = f1
-        f_out[i, 2] = f2
-
-
 def eval_spring_forces(pos, pos_prev, dt, spring_indices, rest, k, kd):
     """Spring forces on every particle (scatter form).
 
@@ -122,24 +76,4 @@ def eval_spring_forces(pos, pos_prev, dt, spring_indices, rest, k, kd):
     _spring_forces(x, xp, 1.0 / float(dt), np.ascontiguousarray(idx[:, 0]), np.ascontiguousarray(idx[:, 1]),
                    np.ascontiguousarray(rest, dtype=np.float64), np.ascontiguousarray(k, dtype=np.float64),
                    np.ascontiguousarray(kd, dtype=np.float64), out)
-    return out
-
-
-def eval_spring_forces_gather(pos, pos_prev, dt, adj_offsets, adj_other, adj_rest, adj_k, adj_kd):
-    """Spring forces gathered per vertex from CSR arrays (see
-    :func:`vfit_engine.garment.springs.vertex_spring_adjacency`); per-entry
-    ``adj_rest``, ``adj_k``, ``adj_kd`` are the spring values repeated per end.
-
-    Returns
-    -------
-    (n, 3) float64, N
-    """
-    x = np.ascontiguousarray(pos, dtype=np.float64)
-    xp = np.ascontiguousarray(pos_prev, dtype=np.float64)
-    out = np.zeros_like(x)
-    _spring_forces_gather(x, xp, 1.0 / float(dt), np.ascontiguousarray(adj_offsets, dtype=np.int64),
-                          np.ascontiguousarray(adj_other, dtype=np.int64),
-                          np.ascontiguousarray(adj_rest, dtype=np.float64),
-                          np.ascontiguousarray(adj_k, dtype=np.float64),
-                          np.ascontiguousarray(adj_kd, dtype=np.float64), out)
     return out

@@ -45,7 +45,10 @@ class Model:
     pin_indices : (p,) int64
         Pinned particles, in the order pin targets are given.
     max_strain : float
-        Default Provot limit for structural springs (0.10 = 10 %).
+        The material's largest wearable stretch (0.10 = 10 %).
+    corners : (k, 3) int64
+        Polygon corners whose angle shear changes: (previous, corner, next) vertex of every corner of
+        the polygons with 4 or more corners (:func:`vfit_engine.garment.springs.polygon_corners`).
     """
 
     rest_pos: np.ndarray
@@ -58,10 +61,11 @@ class Model:
     inv_mass: np.ndarray
     pin_indices: np.ndarray
     max_strain: float = 0.10
+    corners: np.ndarray = None
 
     @classmethod
     def create(cls, rest_pos, spring_indices, spring_rest, spring_k, spring_kd, spring_type, mass,
-               pin_indices=(), max_strain=0.10):
+               pin_indices=(), max_strain=0.10, corners=None):
         """Validate raw arrays and build a model; ``inv_mass`` is 1/mass, 0 at pins.
 
         Parameters
@@ -73,6 +77,8 @@ class Model:
         mass : (n,) float, kg (> 0 except at pins)
         pin_indices : (p,) int
         max_strain : float
+        corners : (k, 3) int or None
+            Polygon corners (none when None).
         """
         pos = _frozen(rest_pos, np.float64, (3,), "rest_pos")
         n = pos.shape[0]
@@ -108,8 +114,12 @@ class Model:
         w.setflags(write=False)
         if not (np.isfinite(max_strain) and max_strain >= 0):
             raise InputError("max_strain must be finite and >= 0")
+        corners = _frozen(np.zeros((0, 3)) if corners is None else np.asarray(corners).reshape(-1, 3), np.int64, (3,),
+                          "corners")
+        if corners.size and (corners.min() < 0 or corners.max() >= n):
+            raise InputError("corners refers to a particle that does not exist")
         return cls(pos, idx, arrays["spring_rest"], arrays["spring_k"], arrays["spring_kd"], stype,
-                   m, w, pins, float(max_strain))
+                   m, w, pins, float(max_strain), corners)
 
     @classmethod
     def from_polygons(cls, face_verts, face_offsets, rest_pos, material, pin_indices=()):
@@ -125,7 +135,7 @@ class Model:
             A :class:`vfit_engine.sim.materials.Material`, a preset name or a JSON path.
         pin_indices : (p,) int64
         """
-        from vfit_engine.garment.springs import build_springs, spring_constants, vertex_masses
+        from vfit_engine.garment.springs import build_springs, polygon_corners, spring_constants, vertex_masses
         from vfit_engine.sim.materials import resolve_material
 
         material = resolve_material(material)
@@ -133,7 +143,7 @@ class Model:
         k, kd = spring_constants(springs, material.stiffness, material.damping)
         mass = vertex_masses(face_verts, face_offsets, rest_pos, material.areal_density)
         return cls.create(rest_pos, springs.indices, springs.rest, k, kd, springs.type, mass,
-                          pin_indices, material.max_strain)
+                          pin_indices, material.max_strain, polygon_corners(face_verts, face_offsets))
 
     @property
     def particle_count(self):

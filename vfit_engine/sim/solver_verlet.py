@@ -1,31 +1,27 @@
-"""Position-Verlet mass-spring solver with Provot strain limiting and colliders.
+"""Position-Verlet cloth solver: explicit bending springs, compliant stretch and shear, surface contacts.
 
-``SolverVerlet(model, settings, colliders).step(state, dt)`` advances a
-:class:`~vfit_engine.sim.state.State` by one substep; :meth:`SolverVerlet.step_frame`
-runs ``settings.substeps`` of them in one compiled call. Per substep (see
-:mod:`vfit_engine.kernels.integrate`): damped Hooke springs + gravity, position
-Verlet with air damping, pins, Provot strain limiting (Provot 1995), spheres,
-then any other collider's ``project(x, x_prev, inv_mass)`` (e.g. the body mesh).
+``SolverVerlet(model, settings, contact=..., body=..., points=...)`` advances a
+:class:`~vfit_engine.sim.state.State` by substeps of :func:`vfit_engine.kernels.cloth.cloth_substeps`:
 
-Explicit stability. Position Verlet with spring damping on a particle of inverse
-mass ``w`` is stable when ``lambda dt^2 + 2 gamma dt < 4`` for the largest
-eigenvalue ``lambda`` of the stiffness and ``gamma`` of the damping; by
-Gershgorin ``lambda <= 2 w sum(k)`` and ``gamma <= 2 w sum(kd)`` over the
-particle's springs. When ``stability_safety > 0`` the solver scales each
-spring's ``k`` and ``kd`` by ``min(1, s_i, s_j)`` with
-``s_i = 4 safety / (2 w_i sum k dt^2 + 4 w_i sum kd dt)``, so fabrics stiffer than the
-step can carry become as stiff as it allows and strain limiting provides the
-inextensibility -- the reason Provot introduced it. The model is not changed;
-:attr:`SolverVerlet.softened_fraction` reports how many springs were softened.
+* **explicit** (in the force pass of position Verlet, Verlet 1967 / Jakobsen 2001): the bend springs
+  (damped Hooke springs between second neighbours) and the damping of the stretch and shear springs;
+  when ``stability_safety > 0`` each of their ``k`` and ``kd`` is scaled by ``min(1, s_i, s_j)`` with
+  ``s_i = 4 safety / (2 w_i sum k dt^2 + 4 w_i sum kd dt)`` (Gershgorin's bound on the explicit step:
+  stable when ``lambda dt^2 + 2 gamma dt < 4``), so a spring stiffer than the step can carry becomes
+  as stiff as it allows; :attr:`SolverVerlet.softened_fraction` says how many were;
+* **constraints** (solved ``iterations`` times per substep, Gauss-Seidel, XPBD: Macklin et al. 2016):
+  every structural spring is a distance constraint of compliance ``1 / k`` -- the material's stretch
+  stiffness, not softened -- and every shear spring (a polygon's diagonal) one of compliance ``1 / k``
+  from the shear stiffness, so polygons keep their shape as the fabric's shear modulus says instead
+  of collapsing. With ``stretch_limit`` set, stretch is Provot's hard limit instead (Provot 1995:
+  only longer than ``(1 + limit) l0`` is corrected), the seed's model;
+* **contacts** with the body (an exact triangle mesh, :class:`vfit_engine.collide.body_mesh.MeshCollider`)
+  and/or analytic spheres, for the cloth's vertices and for points spread over its triangles
+  (:mod:`vfit_engine.sim.contact_points`), solved in the same loop as the constraints;
+* any other collider with ``project(x, x_prev, inv_mass)`` (ellipsoids, hulls) after each substep.
 
-Strain-limiting order. Serially the limited springs are swept in index order
-(structural springs sorted by vertex, then bend), which carries corrections
-along mesh rows; the parallel kernel needs springs grouped in colours sharing
-no vertex, an order that converges more slowly (benchmarks/bench_sphere_drape.py
-shows ~16 % vs ~10.7 % peak stretch at N = 100), so ``parallel=True`` also
-changes results, not only speed. Gauss-Seidel leaves a residual above the limit
-that grows with cloth resolution and step size; over-relaxation and limiting
-bend springs (redundant constraints on quad grids) shrink it.
+The solver owns every array the kernel reads or writes; callers change the sweep order and the
+push limit through :meth:`SolverVerlet.sweep_from` and :attr:`SolverVerlet.max_push`.
 """
 from __future__ import annotations
 
@@ -48,126 +44,307 @@ class VerletSettings:
     gravity : (3,) float, m/s^2
     air_damping : float, 1/s
         Velocity decay rate; per step ``c = 1 - exp(-air_damping dt)``.
-    strain_limit : float or None
-        Provot limit of structural springs (0.10 = 10 %); None: ``model.max_strain``.
-    shear_strain_limit : float or None
-        Limit of shear springs; None leaves them unlimited (free to shear, so
-        the cloth can fold over doubly curved shapes).
-    bend_strain_limit : float or None
-        Limit of bend springs. On quad grids a row/column bend pair can only
-        exceed the structural limit if a structural spring does, so limiting it
-        too is a redundant constraint that carries corrections two vertices at a
-        time and speeds convergence; on triangle meshes it also restrains shear.
-    strain_limit_iterations : int
-        Gauss-Seidel sweeps per substep (Provot used a few).
-    strain_limit_relaxation : float
-        Over-relaxation ``omega`` of each correction (1 = Provot; successive
-        over-relaxation with 1 < omega < 2 converges faster).
+    iterations : int
+        Gauss-Seidel sweeps over the constraints and contacts per substep.
+    slack, compression : float
+        The band (fractions of the rest length) in which a stretch constraint holds no force: woven
+        yarns straighten their crimp at almost no load before the fabric resists (``slack``), and
+        buckle at once under compression (``compression``: a little keeps the cloth from rippling
+        at the scale of its mesh). Beyond the band the material's stretch stiffness acts.
+    bend_limit : float or None
+        Provot-style limit on the bend pairs (second neighbours): they may shorten freely (the cloth
+        folds) but not lengthen by more than this, so folds modelled into the garment -- a turned
+        hem, a collar, a lapel -- do not open out. None: bend springs only.
+    shear_limit_deg : float or None
+        A quad's corner angles change by at most this (Provot's shear limit, held by its diagonals:
+        ``Model.spring_diagonal_factor`` turns it into a length band); the shear springs act within.
+        None: shear springs only.
+    relax_by_stiffness : bool
+        Weigh the constraints' corrections by their stiffness (``relax``, :mod:`vfit_engine.kernels.cloth`):
+        where the body forces a stretch, the stretch is shared as an elastic sheet shares it.
     stability_safety : float
-        Fraction of the explicit stability bound springs are softened to; 0
-        disables softening (then too stiff a fabric explodes).
-    parallel : bool
-        Use the ``parallel=True`` kernel (forces gathered per vertex).
-    gather : bool or None
-        Gather spring forces per vertex (race-free; needed for parallel) instead of
-        scattering them per spring (half the arithmetic). None: ``parallel``.
+        Fraction of the explicit stability bound the explicit springs are softened to; 0 disables
+        softening.
     """
 
-    substeps: int = 10
+    substeps: int = 8
     gravity: tuple = (0.0, -9.81, 0.0)
     air_damping: float = 0.5
-    strain_limit: float | None = None
-    shear_strain_limit: float | None = None
-    bend_strain_limit: float | None = None
-    strain_limit_iterations: int = 5
-    strain_limit_relaxation: float = 1.0
-    stability_safety: float = 0.5
-    parallel: bool = False
-    gather: bool | None = None
+    iterations: int = 12
+    slack: float = 0.015
+    compression: float = 0.3
+    bend_limit: float | None = 0.015
+    shear_limit_deg: float | None = 10.0
+    shear_restore: float = 0.02
+    relax_by_stiffness: bool = True
+    stability_safety: float = 0.2
 
     def __post_init__(self):
-        if int(self.substeps) < 1 or int(self.strain_limit_iterations) < 0:
-            raise ValueError("substeps must be >= 1 and strain_limit_iterations >= 0")
+        if int(self.substeps) < 1 or int(self.iterations) < 0:
+            raise ValueError("substeps must be >= 1 and iterations >= 0")
         if len(self.gravity) != 3 or not all(math.isfinite(g) for g in self.gravity):
             raise ValueError("gravity must be three finite numbers")
         if not (self.air_damping >= 0 and self.stability_safety >= 0):
             raise ValueError("air_damping and stability_safety must be >= 0")
-        if not 0.0 < self.strain_limit_relaxation < 2.0:
-            raise ValueError("strain_limit_relaxation must be in (0, 2)")
-        for lim in (self.strain_limit, self.shear_strain_limit, self.bend_strain_limit):
-            if lim is not None and not (math.isfinite(lim) and lim >= 0):
-                raise ValueError("strain limits must be finite and >= 0")
+        for name in ("slack", "bend_limit"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be finite and >= 0")
+        if not 0.0 <= self.compression < 1.0:
+            raise ValueError("compression must be in [0, 1)")
+        if self.shear_limit_deg is not None and not 0.0 < self.shear_limit_deg < 90.0:
+            raise ValueError("shear_limit_deg must be in (0, 90)")
+
+
+#: Relaxation weights: stiffness / (this percentile of the family's stiffnesses), clipped to
+#: [RELAX_MIN, 1] (a few very stiff constraints must not make the rest converge slowly).
+RELAX_PERCENTILE = 90.0
+RELAX_MIN = 0.1
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """How the cloth meets the body.
+
+    Attributes
+    ----------
+    skin : float, m
+        Clearance the cloth's vertices keep from the body.
+    surface_skin : float, m
+        Clearance of the contact points inside the cloth's triangles (they lie between vertices,
+        where a smaller clearance already keeps the surface out).
+    reach : float, m
+        Contacts are made for points within ``skin + reach`` of the body.
+    friction : float
+        Coulomb coefficient.
+    damping : float, 1/s
+        Decay rate of the tangential velocity of pushed cloth (cloth resting on skin comes to rest).
+    reuse : float, m
+        A point in contact that moved less than this since its last exact query keeps that query's
+        tangent plane; 0 queries every substep.
+    """
+
+    skin: float = 0.002
+    surface_skin: float = 0.001
+    reach: float = 0.002
+    friction: float = 0.8
+    damping: float = 0.0
+    reuse: float = 0.0005
+
+
+def _corner_angle(pos, ends, corner):
+    """(k,) float64, radians: the angle at ``corner`` (k,) between ``ends`` (k, 2)."""
+    u = pos[ends[:, 0]] - pos[corner]
+    w = pos[ends[:, 1]] - pos[corner]
+    return np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), np.einsum("ij,ij->i", u, w))
+
+
+#: Constraint kinds (``SolverVerlet._c_kind``).
+KIND_STRETCH, KIND_BEND, KIND_ANGLE, KIND_SHEAR = 0, 1, 2, 3
+#: The solver's per-constraint arrays, all in sweep order.
+CONSTRAINT_ARRAYS = ("_c_i", "_c_j", "_c_corner", "_c_lo", "_c_hi", "_t_lo", "_t_hi", "_c_alpha", "_c_relax",
+                     "_c_kind", "_c_rest")
+
+
+def _empty_grid():
+    """A body grid with no triangles (the kernel's argument when there is no body mesh)."""
+    from vfit_engine.kernels.collide_mesh import BodyGrid
+
+    z3, zi = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    return BodyGrid(np.zeros((0, 16)), zi, z3, zi, z3, z3, np.zeros(3), np.ones(3, np.int64), 1.0, 1.0,
+                    np.zeros(2, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(1))
 
 
 class SolverVerlet:
-    """Mass-spring cloth solver (module docstring).
+    """Cloth solver (module docstring).
 
     Parameters
     ----------
     model : Model
     settings : VerletSettings, optional
+    contact : ContactSettings, optional
+    body : MeshCollider or None
+        The exact body surface to keep the cloth out of.
+    spheres : (S, 4) float64 or None
+        Sphere colliders: centre (m) and radius (m).
+    points : ContactPointSet or None
+        Contact points; None: the cloth's vertices only.
     colliders : sequence
-        Objects with ``project(x, x_prev, inv_mass)``; those that also have
-        ``sphere_arrays()`` (:class:`vfit_engine.collide.spheres.SphereCollider`)
-        run inside the fused kernel. ``colliders`` may be changed between frames.
+        Other colliders, each with ``project(x, x_prev, inv_mass)``, applied after every substep.
     """
 
-    def __init__(self, model, settings=None, colliders=()):
-        from vfit_engine.garment.springs import BEND, SHEAR, STRUCTURAL, vertex_spring_adjacency
-        from vfit_engine.kernels.strain_limit import colour_springs
+    def __init__(self, model, settings=None, contact=None, body=None, spheres=None, points=None, colliders=()):
+        from vfit_engine.sim.contact_points import contact_points
 
         self.model = model
         self.settings = settings or VerletSettings()
+        self.contact = contact or ContactSettings()
         self.colliders = list(colliders)
+        self.max_push = math.inf
+        self.contact_queries = 0
+        self.softened_fraction = 0.0
         n = model.particle_count
-        self._adj_off, self._adj_j, self._adj_spring = vertex_spring_adjacency(n, model.spring_indices)
-        self._adj_rest = np.ascontiguousarray(model.spring_rest[self._adj_spring])
-        self._si = np.ascontiguousarray(model.spring_indices[:, 0])
-        self._sj = np.ascontiguousarray(model.spring_indices[:, 1])
-        self._rest = np.ascontiguousarray(model.spring_rest)
-
-        st = self.settings
-        limit = model.max_strain if st.strain_limit is None else st.strain_limit
-        lim_factor = np.full(model.spring_count, np.inf)
-        lim_factor[model.spring_type == STRUCTURAL] = 1.0 + limit
-        if st.shear_strain_limit is not None:
-            lim_factor[model.spring_type == SHEAR] = 1.0 + st.shear_strain_limit
-        if st.bend_strain_limit is not None:
-            lim_factor[model.spring_type == BEND] = 1.0 + st.bend_strain_limit
-        limited = np.nonzero(np.isfinite(lim_factor))[0]
-        if st.parallel:
-            order, self._colour_off = colour_springs(model.spring_indices[limited], n)
-        else:
-            # serial: classic Gauss-Seidel in spring order (sorted by vertex), which
-            # carries corrections along rows and converges faster than colour order
-            order, self._colour_off = np.arange(limited.size), np.array([0, limited.size], dtype=np.int64)
-        sel = limited[order]
-        self._lim_i = np.ascontiguousarray(model.spring_indices[sel, 0])
-        self._lim_j = np.ascontiguousarray(model.spring_indices[sel, 1])
-        self._lim_len = np.ascontiguousarray(model.spring_rest[sel] * lim_factor[sel])
-
         self._inv_mass = np.ascontiguousarray(model.inv_mass, dtype=np.float64).copy()
-        self._gravity = np.ascontiguousarray(st.gravity, dtype=np.float64)
-        self._x_new = np.zeros((n, 3))
-        self._f = np.zeros((n, 3))
-        self._gather = bool(self.settings.parallel if self.settings.gather is None else self.settings.gather)
-        self._no_pins = np.zeros(0, np.int64)
-        self._no_pin_pos = np.zeros((0, 3))
+        self._gravity = np.ascontiguousarray(self.settings.gravity, dtype=np.float64)
+        self._build_constraints()
+        self.points = points if points is not None else contact_points(np.zeros(0, np.int64), np.zeros(1, np.int64),
+                                                                       model.rest_pos, surface=False)
+        self._set_contacts(body, spheres)
+        self._no_pins, self._no_pin_pos = np.zeros(0, np.int64), np.zeros((0, 3))
         self._pin_from = np.zeros((model.pin_count, 3))
         self._const_dt = None
-        self.softened_fraction = 0.0
+        self._f = np.zeros((n, 3))
 
-    # -- constants ---------------------------------------------------------
+    # -- set-up -------------------------------------------------------------------------
+    def _build_constraints(self):
+        """The constraints: stretch (structural springs), bend limits, shear limits (corner angles) and
+        the compliant shear springs that restore the corners' angles."""
+        from vfit_engine.garment.springs import BEND, SHEAR, STRUCTURAL
+
+        m, st = self.model, self.settings
+        parts = [self._distance_constraints(np.flatnonzero((m.spring_type == STRUCTURAL) & (m.spring_k > 0)),
+                                            KIND_STRETCH)]
+        if st.bend_limit is not None:
+            parts.append(self._distance_constraints(np.flatnonzero(m.spring_type == BEND), KIND_BEND))
+        if st.shear_limit_deg is not None and m.corners.size:
+            parts.append(self._angle_constraints())
+            if st.shear_restore > 0:
+                parts.append(self._distance_constraints(np.flatnonzero((m.spring_type == SHEAR) & (m.spring_k > 0)),
+                                                        KIND_SHEAR))
+        for name in CONSTRAINT_ARRAYS:
+            setattr(self, name, np.ascontiguousarray(np.concatenate([p[name] for p in parts])))
+        self._lam = np.zeros(self._c_i.size)
+        self._active = np.zeros(self._c_i.size, dtype=np.int64)
+
+    def _distance_constraints(self, springs, kind):
+        """Constraint arrays (a dict) of the model springs ``springs`` of one ``kind``."""
+        m, st = self.model, self.settings
+        rest = m.spring_rest[springs]
+        k = m.spring_k[springs]
+        lo, hi, alpha, relax = np.zeros(springs.size), rest.copy(), np.zeros(springs.size), np.ones(springs.size)
+        if kind == KIND_STRETCH:
+            lo, hi, alpha = rest * (1.0 - st.compression), rest * (1.0 + st.slack), 1.0 / k
+        elif kind == KIND_BEND:
+            hi = rest * (1.0 + st.bend_limit)  # shortening (folding) is free, unfolding limited
+        else:  # a shear spring pulling its quad back to shape, weighted lightly where it conflicts
+            alpha, relax = 1.0 / k, np.full(springs.size, st.shear_restore)
+        if st.relax_by_stiffness and kind == KIND_STRETCH and springs.size:
+            # Gauss-Seidel settles a conflict where sum relax_e C_e u_e = 0 at every vertex: relax
+            # proportional to the stiffness makes that the elastic balance sum k_e C_e u_e = 0
+            relax = np.clip(k / np.percentile(k, RELAX_PERCENTILE), RELAX_MIN, 1.0)
+        n = springs.size
+        return dict(_c_i=m.spring_indices[springs, 0], _c_j=m.spring_indices[springs, 1],
+                    _c_corner=np.full(n, -1, np.int64), _c_lo=lo, _c_hi=hi, _t_lo=np.zeros(n), _t_hi=np.zeros(n),
+                    _c_alpha=alpha, _c_relax=relax, _c_kind=np.full(n, kind, np.int64), _c_rest=rest)
+
+    def _angle_constraints(self):
+        """Constraint arrays of the polygon corners: each angle within shear_limit_deg of its rest."""
+        m = self.model
+        c = m.corners
+        n = c.shape[0]
+        angle = _corner_angle(m.rest_pos, c[:, [0, 2]], c[:, 1])
+        lim = math.radians(self.settings.shear_limit_deg)
+        z = np.zeros(n)
+        return dict(_c_i=c[:, 0], _c_j=c[:, 2], _c_corner=c[:, 1], _c_lo=z, _c_hi=z,
+                    _t_lo=np.maximum(angle - lim, 0.0), _t_hi=np.minimum(angle + lim, math.pi), _c_alpha=z,
+                    _c_relax=np.ones(n), _c_kind=np.full(n, KIND_ANGLE, np.int64), _c_rest=angle)
+
+    def _set_contacts(self, body, spheres):
+        p = self.points.count
+        self.body = body
+        if body is None:
+            self._grid = _empty_grid()
+        elif hasattr(body, "grid"):
+            self._grid = body.grid
+        else:  # TEMPORARY until MeshCollider.grid lands
+            from vfit_engine.kernels.collide_mesh import BodyGrid
+            self._grid = BodyGrid(*body._mesh_args)
+        self._spheres = np.zeros((0, 4)) if spheres is None else np.ascontiguousarray(spheres, dtype=np.float64)
+        if self._spheres.ndim != 2 or self._spheres.shape[1] != 4:
+            raise ValueError("spheres must have shape (S, 4): centre and radius")
+        skin = np.full(p, self.contact.surface_skin)
+        skin[:self.points.vertex_count] = self.contact.skin
+        self._pt_skin = skin
+        self._p_last = np.zeros((p, 3))
+        self._d_last = np.full(p, -np.inf)
+        self._c_n, self._c_nq, self._c_h = np.zeros((p, 3)), np.zeros(p), np.zeros(p)
+        self._c_list = np.zeros(p, dtype=np.int64)
+        self._c_n2, self._c_nq2, self._c_h2 = np.zeros((p, 3)), np.full(p, np.nan), np.zeros(p)
+        self._push = np.zeros((self.model.particle_count, 3))
+
+    def sweep_from(self, vertices):
+        """Sweep the constraints outward from ``vertices`` (by graph distance, nearest first).
+
+        Pins move the cloth and hold it up: a sweep that starts at them passes their pull on down
+        the cloth within one sweep, where the vertex order may meet the pulled constraint last.
+        """
+        from scipy import sparse
+        from scipy.sparse.csgraph import dijkstra
+
+        vertices = np.asarray(vertices, dtype=np.int64)
+        if vertices.size == 0 or self._c_i.size == 0:
+            return
+        n = self.model.particle_count
+        adj = sparse.coo_matrix((np.ones(self._c_i.size), (self._c_i, self._c_j)), shape=(n, n)).tocsr()
+        depth = dijkstra(adj, directed=False, indices=vertices, unweighted=True, min_only=True)
+        order = np.argsort(np.minimum(depth[self._c_i], depth[self._c_j]), kind="stable")
+        for name in CONSTRAINT_ARRAYS:
+            setattr(self, name, np.ascontiguousarray(getattr(self, name)[order]))
+
+    def allow_stretch(self, vertices, strain):
+        """Let the cloth among ``vertices`` (k,) int64 stretch freely up to ``strain`` (fraction).
+
+        For the cloth round an opening smaller than the body part it must go round: it has to
+        stretch that much, and a free band lets it open to the body without the constraints nearest
+        the body taking it all; its stretch and bend limits open by ``strain``, its corner angles by
+        ``strain`` radians (a quad one side of which stretches by s more than the other turns so much).
+        """
+        inside = np.zeros(self.model.particle_count, dtype=bool)
+        inside[np.asarray(vertices, dtype=np.int64)] = True
+        both = inside[self._c_i] & inside[self._c_j]
+        dist = both & ((self._c_kind == KIND_STRETCH) | (self._c_kind == KIND_BEND))
+        self._c_hi[dist] = np.maximum(self._c_hi[dist], self._c_rest[dist] * (1.0 + float(strain)))
+        ang = both & (self._c_kind == KIND_ANGLE)
+        self._t_lo[ang] = np.maximum(self._t_lo[ang] - float(strain), 0.0)
+        self._t_hi[ang] = np.minimum(self._t_hi[ang] + float(strain), math.pi)
+        self._const_dt = None
+
+    def admit(self, pos, vertices):
+        """Widen the bands of the constraints among ``vertices`` (k,) int64 to admit their lengths at
+        ``pos`` (n, 3) m: a garment moved onto a bigger body is as stretched there as the body forces it,
+        and the cloth the body holds out should not fight back towards a size it cannot have."""
+        inside = np.zeros(self.model.particle_count, dtype=bool)
+        inside[np.asarray(vertices, dtype=np.int64)] = True
+        both = inside[self._c_i] & inside[self._c_j]
+        dist = both & (self._c_kind != KIND_ANGLE) & (self._c_kind != KIND_SHEAR)
+        length = np.linalg.norm(pos[self._c_j[dist]] - pos[self._c_i[dist]], axis=1)
+        self._c_hi[dist] = np.maximum(self._c_hi[dist], length)
+        self._c_lo[dist] = np.minimum(self._c_lo[dist], length)
+        ang = both & (self._c_kind == KIND_ANGLE)
+        angle = _corner_angle(pos, np.stack([self._c_i[ang], self._c_j[ang]], axis=1), self._c_corner[ang])
+        self._t_lo[ang] = np.minimum(self._t_lo[ang], angle)
+        self._t_hi[ang] = np.maximum(self._t_hi[ang], angle)
+        self._const_dt = None
+
+    # -- constants ------------------------------------------------------------------------
     def effective_constants(self, dt):
-        """Spring constants after stability softening at step ``dt`` (s).
+        """The explicit springs' constants after stability softening at step ``dt`` (s).
 
         Returns
         -------
         k : (s,) float64, N/m
+            0 for springs that are constraints (their stiffness lives in the constraint).
         kd : (s,) float64, N s/m
         """
         m = self.model
+        from vfit_engine.garment.springs import SHEAR, STRUCTURAL
+
         k = np.array(m.spring_k)
+        # the stretch constraints hold the stretch stiffness; with a shear limit the quads trellis
+        # freely within it (explicit shear springs stiffer than the step can carry only ring there)
+        k[m.spring_type == STRUCTURAL] = 0.0
+        if self.settings.shear_limit_deg is not None:
+            k[m.spring_type == SHEAR] = 0.0
         kd = np.array(m.spring_kd)
         safety = self.settings.stability_safety
         if safety > 0 and m.spring_count:
@@ -187,23 +364,30 @@ class SolverVerlet:
     def _prepare(self, dt):
         if self._const_dt == dt:
             return
+        from vfit_engine.kernels.cloth import ClothArrays
+
         k, kd = self.effective_constants(dt)
-        self._k = np.ascontiguousarray(k)
-        self._kd = np.ascontiguousarray(kd)
-        self._adj_k = np.ascontiguousarray(k[self._adj_spring])
-        self._adj_kd = np.ascontiguousarray(kd[self._adj_spring])
+        keep = (k > 0) | (kd > 0)
+        m = self.model
+        self._cloth = ClothArrays(self._inv_mass, self._gravity,
+                                  np.ascontiguousarray(m.spring_indices[keep, 0]),
+                                  np.ascontiguousarray(m.spring_indices[keep, 1]),
+                                  np.ascontiguousarray(m.spring_rest[keep]), np.ascontiguousarray(k[keep]),
+                                  np.ascontiguousarray(kd[keep]), self._c_i, self._c_j, self._c_lo, self._c_hi,
+                                  self._c_alpha, self._c_relax, self._c_corner, np.ascontiguousarray(np.cos(self._t_lo)),
+                                  np.ascontiguousarray(np.cos(self._t_hi)))
         self._c_air = 1.0 - math.exp(-self.settings.air_damping * dt)
         self._const_dt = dt
 
-    # -- state ---------------------------------------------------------------
+    # -- state ----------------------------------------------------------------------------
     def init_state(self, dt, pos=None, vel=None):
         """A state at ``pos`` (default rest) moving at ``vel`` (default 0), m and m/s.
 
-        ``pos_prev = pos - vel dt + a0 dt^2 / 2`` with the initial acceleration
-        ``a0`` (springs + gravity), so the first steps follow
-        ``pos + vel t + a0 t^2 / 2`` (exactly, for free fall without air damping).
+        ``pos_prev = pos - vel dt + a0 dt^2 / 2`` with the initial acceleration ``a0`` (explicit
+        springs + gravity), so the first steps follow ``pos + vel t + a0 t^2 / 2`` (exactly, for
+        free fall without air damping).
         """
-        from vfit_engine.kernels.springs import eval_spring_forces_gather
+        from vfit_engine.kernels.springs import eval_spring_forces
 
         dt = float(dt)
         self._prepare(dt)
@@ -212,15 +396,18 @@ class SolverVerlet:
         if x.shape != (m.particle_count, 3):
             raise ValueError(f"pos must have shape ({m.particle_count}, 3)")
         v = np.zeros_like(x) if vel is None else np.broadcast_to(np.asarray(vel, dtype=np.float64), x.shape)
-        f = eval_spring_forces_gather(x, x - v * dt, dt, self._adj_off, self._adj_j, self._adj_rest,
-                                      self._adj_k, self._adj_kd)
+        c = self._cloth
+        f = eval_spring_forces(x, np.ascontiguousarray(x - v * dt), dt, np.stack([c.sp_i, c.sp_j], axis=1),
+                               c.sp_rest, c.sp_k, c.sp_kd)
         free = (self._inv_mass > 0)[:, None]
         a0 = np.where(free, self._inv_mass[:, None] * f + self._gravity, 0.0)
         v = np.where(free, v, 0.0)
-        x_prev = x - v * dt + 0.5 * a0 * dt * dt
-        return State(x, x_prev, dt)
+        self._d_last[:] = -np.inf
+        self._c_nq2[:] = np.nan
+        self._lam[:] = 0.0
+        return State(x, x - v * dt + 0.5 * a0 * dt * dt, dt)
 
-    # -- stepping --------------------------------------------------------------
+    # -- stepping ---------------------------------------------------------------------------
     def step(self, state, dt):
         """Advance ``state`` in place by one substep of ``dt`` (s); returns it."""
         return self._advance(state, float(dt), 1)
@@ -231,7 +418,7 @@ class SolverVerlet:
         return self._advance(state, float(frame_dt) / n_sub, n_sub)
 
     def _advance(self, state, dt, n_sub):
-        from vfit_engine.kernels.integrate import substeps_parallel, substeps_serial
+        from vfit_engine.kernels.cloth import ContactPoints, ContactState, StepParams, cloth_substeps
 
         if not dt > 0:
             raise ValueError("dt must be > 0")
@@ -243,83 +430,36 @@ class SolverVerlet:
             # keep the velocity when the step changes: pos_prev is one *new* step back
             state.pos_prev[:] = state.pos - (state.pos - state.pos_prev) * (dt / state.dt)
             state.dt = dt
-
-        fused, other = [], []
-        for c in self.colliders:
-            (fused if hasattr(c, "sphere_arrays") else other).append(c)
-        if fused:
-            parts = [c.sphere_arrays() for c in fused]
-            sph = [np.ascontiguousarray(np.concatenate([p[q] for p in parts]), dtype=np.float64) for q in range(4)]
-        else:
-            sph = [np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0)]
         if state.pin_target is not None and m.pin_count:
             if state.pin_target.shape != (m.pin_count, 3):
                 raise ValueError(f"pin_target must have shape ({m.pin_count}, 3)")
-            pin_idx = m.pin_indices
-            np.take(state.pos, pin_idx, axis=0, out=self._pin_from)
-            pin_from, pin_to = self._pin_from, np.ascontiguousarray(state.pin_target, dtype=np.float64)
+            np.take(state.pos, m.pin_indices, axis=0, out=self._pin_from)
+            pins = (m.pin_indices, self._pin_from, np.ascontiguousarray(state.pin_target, dtype=np.float64))
         else:
-            pin_idx, pin_from, pin_to = self._no_pins, self._no_pin_pos, self._no_pin_pos
-
-        st = self.settings
-        mesh = [c for c in other if hasattr(c, "contact_args")]
-        if mesh:
-            if len(mesh) > 1 or fused:
-                raise ValueError("a fused mesh-contact collider must be the only collider")
-            self._advance_contacts(state, mesh[0], pin_idx, pin_from, pin_to, dt, n_sub)
-            for c in other:
-                if c is not mesh[0]:
-                    c.project(state.pos, state.pos_prev, self._inv_mass)
-            state.time += dt * n_sub
-            state.step_count += n_sub
-            return state
-        kernel = substeps_parallel if self.settings.parallel else substeps_serial
-        args_head = (state.pos, state.pos_prev, self._inv_mass, self._gravity, self._gather,
-                     self._si, self._sj, self._rest, self._k, self._kd,
-                     self._adj_off, self._adj_j, self._adj_rest, self._adj_k, self._adj_kd,
-                     self._lim_i, self._lim_j, self._lim_len, self._colour_off,
-                     int(st.strain_limit_iterations), float(st.strain_limit_relaxation),
-                     sph[0], sph[1], sph[2], sph[3], pin_idx, pin_from, pin_to, dt, self._c_air)
-        if not other:
-            kernel(*args_head, 0, n_sub, n_sub, self._x_new, self._f)
-        else:
-            for s in range(n_sub):
-                kernel(*args_head, s, s + 1, n_sub, self._x_new, self._f)
-                for c in other:
-                    c.project(state.pos, state.pos_prev, self._inv_mass)
+            pins = (self._no_pins, self._no_pin_pos, self._no_pin_pos)
+        c = self.contact
+        prm = StepParams(dt, self._c_air, int(self.settings.iterations), float(c.reach), float(c.friction),
+                         float(self.max_push), 1.0 - math.exp(-float(c.damping) * dt), float(c.reuse),
+                         self.body is not None)
+        pts = ContactPoints(self.points.verts, self.points.bary, self._pt_skin, self._spheres)
+        cst = ContactState(self._p_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_list, self._push,
+                           self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2)
+        spans = [(0, n_sub)] if not self.colliders else [(s, s + 1) for s in range(n_sub)]
+        for begin, end in spans:
+            self.contact_queries += cloth_substeps(state.pos, state.pos_prev, self._cloth, *pins, pts, self._grid, prm,
+                                                   cst, begin, end, n_sub)
+            for col in self.colliders:
+                col.project(state.pos, state.pos_prev, self._inv_mass)
         state.time += dt * n_sub
         state.step_count += n_sub
         return state
 
-    def _advance_contacts(self, state, coll, pin_idx, pin_from, pin_to, dt, n_sub):
-        """Substeps with the body contacts solved inside the strain-limit iterations
-        (:mod:`vfit_engine.kernels.drape_step`); ``coll.contact_args()`` gives
-        ``(mesh_args, skin, reach, friction, max_push, contact_damping)`` (contact damping a rate, 1/s)."""
-        from vfit_engine.kernels.drape_step import drape_substeps
+    @property
+    def constraint_count(self):
+        """Number of distance constraints (stretch, shear and bend limits)."""
+        return int(self._c_i.size)
 
-        n = self.model.particle_count
-        if getattr(self, "_contact_owner", None) is not coll:
-            self._contact_owner = coll
-            self._x_last = np.zeros((n, 3))
-            self._d_last = np.full(n, -np.inf)
-            self._c_n = np.zeros((n, 3))
-            self._c_nq = np.zeros(n)
-            self._c_h = np.zeros(n)
-            self._c_push = np.zeros(n)
-            self._c_list = np.zeros(n, dtype=np.int64)
-            self.contact_queries = 0
-        mesh_args, skin, reach, friction, max_push, contact_damping = coll.contact_args()
-        st = self.settings
-        # the limited springs in serial order (colours only matter for the parallel kernel)
-        self.contact_queries += drape_substeps(
-            state.pos, state.pos_prev, self._inv_mass, self._gravity, self._si, self._sj, self._rest,
-            self._k, self._kd, self._lim_i, self._lim_j, self._lim_len, int(st.strain_limit_iterations),
-            float(st.strain_limit_relaxation), pin_idx, pin_from, pin_to, dt, self._c_air, 0, n_sub, n_sub,
-            *mesh_args, float(skin), float(reach), float(friction), float(max_push),
-            1.0 - math.exp(-float(contact_damping) * dt), float(getattr(coll, "reuse", 0.0)),
-            self._x_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_push, self._c_list, self._f)
-
-    # -- diagnostics -------------------------------------------------------------
+    # -- diagnostics ----------------------------------------------------------------------------
     def max_stretch(self, state, spring_type=0):
         """Largest ``l / l0 - 1`` among springs of ``spring_type`` (default structural)."""
         return self.model.max_stretch(state.pos, spring_type)

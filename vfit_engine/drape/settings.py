@@ -1,0 +1,109 @@
+"""Settings of a drape: the frame loop, the settle test, the start, and the solver's and contacts' settings."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from vfit_engine.errors import InputError
+from vfit_engine.sim.solver_verlet import ContactSettings, VerletSettings
+
+
+def _solver():
+    # a drape damps the air more than the solver's default (a garment settles instead of swinging)
+    return VerletSettings(substeps=8, air_damping=5.0)
+
+
+def _contact():
+    return ContactSettings(skin=0.002, surface_skin=0.001, reach=0.002, friction=0.8, damping=60.0, reuse=0.0001)
+
+
+@dataclass(frozen=True)
+class DrapeSettings:
+    """Settings of a drape (:func:`vfit_engine.drape.run_drape`); the defaults are the product's.
+
+    Attributes
+    ----------
+    fps : float, 1/s
+        Frames per simulated second (a frame is the unit of output and of the settle test).
+    max_frames : int
+        Frames simulated at most; not settled by then means not converged (exit 3).
+    solver : VerletSettings
+        Substeps, iterations, damping and the cloth's constraint bands
+        (:class:`vfit_engine.sim.solver_verlet.VerletSettings`).
+    contact : ContactSettings
+        Clearances, friction and contact damping (:class:`vfit_engine.sim.solver_verlet.ContactSettings`).
+    surface_spacing : float, m
+        Spacing of the contact points over the cloth's triangles (:mod:`vfit_engine.sim.contact_points`);
+        0 holds out the vertices only.
+    push_start, push_end : float, m
+        Longest push out of the body per substep at the first frame and after ``ramp_frames``: a
+        garment that starts inside the body comes out gradually (a sudden push of centimetres would
+        stretch the cloth around it and launch it).
+    ramp_frames : int
+        Frames over which the push limit ramps and the pins move to their targets.
+    settle_frames, settle_step, settle_share, settle_max_step :
+        The settle test: the cloth has settled when, for ``settle_frames`` consecutive frames after
+        the ramp, at most ``settle_share`` of its vertices moved more than ``settle_step`` (m) in a
+        frame and none more than ``settle_max_step`` (m), and no vertex moved more than
+        ``settle_max_step`` over those frames together (so a slow creep does not count as settled).
+    diverge_speed : float, m/s
+        A vertex faster than this means the simulation has diverged (exit 4).
+    untangle : bool
+        Move the garment out of the body before the dynamics (:mod:`vfit_engine.sim.untangle`), its
+        edges stretching by at most ``untangle_strain``, in at most ``untangle_iterations`` steps.
+    untangle_strain : float;  untangle_iterations : int
+    stretch_zone : float, m
+        Width of the cloth round an opening smaller than the body part it goes round that may stretch
+        as far as the opening must (:meth:`vfit_engine.sim.solver_verlet.SolverVerlet.allow_stretch`).
+    pin_strain, pin_fit_strain : float
+        Pin fitting on another body (:func:`vfit_engine.garment.pin_fit.fit_pins`).
+    sphere_skin : float
+        Relative margin of the sphere colliders (``spheres``, ``bone-spheres``).
+    spheres_per_bone : int
+        Spheres along each bone of the ``bone-spheres`` collider.
+    """
+
+    fps: float = 60.0
+    max_frames: int = 400
+    solver: VerletSettings = field(default_factory=_solver)
+    contact: ContactSettings = field(default_factory=_contact)
+    surface_spacing: float = 0.015
+    push_start: float = 0.0002
+    push_end: float = 0.005
+    ramp_frames: int = 40
+    settle_frames: int = 10
+    settle_step: float = 0.0001
+    settle_share: float = 0.005
+    settle_max_step: float = 0.001
+    diverge_speed: float = 20.0
+    untangle: bool = True
+    untangle_strain: float = 0.08
+    untangle_iterations: int = 60
+    stretch_zone: float = 0.03
+    admit_gap: float = 0.01
+    pin_strain: float = 0.03
+    pin_fit_strain: float = 0.015
+    sphere_skin: float = 0.02
+    spheres_per_bone: int = 4
+
+    def __post_init__(self):
+        for name in ("fps", "push_start", "push_end", "settle_step", "settle_max_step", "diverge_speed"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"drape setting {name} must be a positive number, got {value!r}")
+        for name in ("max_frames", "settle_frames"):
+            if int(getattr(self, name)) < 1:
+                raise InputError(f"drape setting {name} must be >= 1")
+        if int(self.ramp_frames) < 0:
+            raise InputError("drape setting ramp_frames must be >= 0")
+        if not 0.0 <= self.settle_share < 1.0:
+            raise InputError(f"drape setting settle_share must be in [0, 1), got {self.settle_share!r}")
+        if not (math.isfinite(self.surface_spacing) and self.surface_spacing >= 0):
+            raise InputError("drape setting surface_spacing must be >= 0")
+
+    def settle_test(self):
+        """The settle test in words, with its numbers (for reports)."""
+        return (f"for {self.settle_frames} consecutive frames ({self.settle_frames / self.fps:.3f} s) at most "
+                f"{100 * self.settle_share:g} % of the vertices move more than {1000 * self.settle_step:g} mm per "
+                f"frame, none more than {1000 * self.settle_max_step:g} mm per frame nor over the "
+                f"{self.settle_frames} frames together")

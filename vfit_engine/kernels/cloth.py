@@ -1,0 +1,408 @@
+"""Numba kernel: cloth substeps -- position Verlet, constraints with bands and compliance, surface contacts.
+
+One substep (Verlet 1967 / Jakobsen 2001 for the integration; Provot 1995 and XPBD, Macklin,
+Mueller & Chentanez 2016, for the constraints; contacts as inequality constraints solved in
+the same Gauss-Seidel loop, as in position based dynamics, Mueller et al. 2007)::
+
+    1. explicit forces: damped Hooke springs and gravity; position Verlet with air damping:
+       x+ = x + (1 - c)(x - x-) + (w f + g) dt^2
+    2. pinned particles follow their targets
+    3. contact generation: every contact point p -- a cloth vertex, or a point of a cloth
+       triangle p = sum_k b_k x_k -- that may be within ``skin_p + reach`` of the body gets the
+       body's closest point q and outward normal n, and the half-space
+           n . p >= n . q + min(skin_p, d + max_push)        (d its signed distance now)
+       (a point inside comes out by at most ``max_push`` per substep)
+    4. ``iterations`` x { every distance constraint (below); every contact half-space }
+    5. contact velocity: the pushes add no velocity; the approaching normal velocity of a pushed
+       vertex is removed (inelastic), its tangential velocity shrinks by ``friction`` times the
+       normal change (Coulomb, never reversing) and by the contact damping.
+
+A distance constraint keeps the length l = |x_j - x_i| of a vertex pair inside a band
+``[lo, hi]``: outside it C = l - hi (or l - lo) and, with compliance alpha (m/N, the inverse of a
+spring stiffness) and ``at = alpha / dt^2``::
+
+    dlam = relax (-C - at lam) / (w_i + w_j + at),   x_i -= w_i dlam u,   x_j += w_j dlam u   (u = d / l)
+
+``lam`` accumulates over a substep's iterations (XPBD) and is clamped to its side of the band
+(projected Gauss-Seidel: a constraint pulls only to keep l <= hi, pushes only to keep l >= lo).
+With alpha = 0 and lo = 0 this is Provot's strain limit; with a band of width 0 a spring of
+stiffness 1/alpha. ``relax`` weighs constraints against each other where they cannot all hold (a
+garment the body forces wider): Gauss-Seidel settles where each vertex's pulls balance,
+sum relax_e C_e u_e = 0, so relax proportional to stiffness shares the stretch as an elastic sheet
+would, instead of short stiff edges taking it all.
+
+A contact point p = sum_k b_k x_k with gap g > 0 below its half-space moves its vertices by
+``dx_k = w_k b_k g n / sum_j w_j b_j^2`` (the point-triangle constraint of PBD): a triangle that
+spans a body bump between its vertices is pushed out as a whole.
+
+Contact generation skips points proven clear: the signed distance is 1-Lipschitz, so a point whose
+last query found ``d_last`` (at ``p_last``) is still at least ``d_last - |p - p_last|`` from the
+body. A point in contact that moved less than ``reuse`` since its last query keeps that query's
+tangent plane (cloth resting on the skin barely moves, and the exact query is most of the cost).
+
+The helpers take plain arrays: the entry kernel unpacks the argument tuples once, since Numba
+re-reads (and reference-counts) a tuple's arrays at every use inside a called function.
+Numba's cache watches only this file: after editing a helper it inlines from another module
+(:mod:`.springs`, :mod:`.integrate`, :mod:`.collide_mesh`), delete ``vfit_engine/kernels/__pycache__``.
+"""
+import math
+from collections import namedtuple
+
+from vfit_engine._jit import njit
+from vfit_engine.kernels.collide_mesh import _query_point
+from vfit_engine.kernels.integrate import _advance_in_place, _move_pins
+from vfit_engine.kernels.springs import _spring_forces
+
+#: The cloth as the kernel sees it (fixed during a drape): inv_mass (n,) 1/kg; gravity (3,) m/s^2;
+#: explicit springs sp_i, sp_j (s,) int64, sp_rest (s,) m, sp_k (s,) N/m, sp_kd (s,) N s/m;
+#: distance constraints in sweep order c_i, c_j (C,) int64, c_lo, c_hi (C,) m, c_alpha (C,) m/N,
+#: c_relax (C,); c_corner (C,) int64 (a shear limit's corner, else -1) and c_cos_lo, c_cos_hi (C,): the
+#: cosines of its corner's smallest and largest angle (an angle constraint instead of a distance).
+ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", "sp_rest", "sp_k", "sp_kd",
+                                         "c_i", "c_j", "c_lo", "c_hi", "c_alpha", "c_relax", "c_corner", "c_cos_lo",
+                                         "c_cos_hi"])
+
+#: Contact points: pt_v (P, 3) int64 vertices and pt_b (P, 3) float64 barycentric weights (cloth
+#: vertex i is (i, i, i) with (1, 0, 0)); pt_skin (P,) m, the clearance each keeps; spheres (S, 4)
+#: float64: sphere colliders (centre, radius), m.
+ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres"])
+
+#: Per-point contact memory (in/out): p_last (P, 3) m and d_last (P,) m (position and a lower bound
+#: of the signed distance at the last query; ``-inf`` forces one), c_n (P, 3) and c_nq (P,) m (the
+#: plane of the last query); scratch: c_h (P,) m, c_list (P,) int64, push (n, 3) m, f (n, 3) N,
+#: lam (C,) m kg, active (C,) int64; c_n2 (P, 3), c_nq2 (P,) m (a second plane in a crease, NaN: none)
+#: and c_h2 (P,) m.
+ContactState = namedtuple("ContactState", ["p_last", "d_last", "c_n", "c_nq", "c_h", "c_list", "push", "f", "lam",
+                                           "active", "c_n2", "c_nq2", "c_h2"])
+
+#: Scalars of a substep: dt s, c_air (per step), iterations, reach m, friction, max_push m,
+#: c_contact (per step), reuse m, use_grid (query the body grid).
+StepParams = namedtuple("StepParams", ["dt", "c_air", "iterations", "reach", "friction", "max_push",
+                                       "c_contact", "reuse", "use_grid"])
+
+#: A constraint within this fraction of its band's ends after a substep's first sweep (or holding a
+#: force) stays in that substep's later sweeps; the others are skipped (most cloth lies well inside
+#: its bands).
+ACTIVE_BAND = 0.003
+#: A new contact plane turned further than this (cosine) from the last one marks a crease.
+CREASE_COS = 0.5
+SYMMETRIC = False
+
+
+@njit(inline="always")
+def _point(x, v, b, p):
+    """Position of contact point ``p``: sum_k b_k x_{v_k}."""
+    i0, i1, i2 = v[p, 0], v[p, 1], v[p, 2]
+    b0, b1, b2 = b[p, 0], b[p, 1], b[p, 2]
+    return (b0 * x[i0, 0] + b1 * x[i1, 0] + b2 * x[i2, 0],
+            b0 * x[i0, 1] + b1 * x[i1, 1] + b2 * x[i2, 1],
+            b0 * x[i0, 2] + b1 * x[i1, 2] + b2 * x[i2, 2])
+
+
+@njit
+def _sphere_query(px, py, pz, spheres):
+    """Signed distance to the nearest sphere's surface, its closest point and outward normal."""
+    best = math.inf
+    qx = qy = qz = nx = ny = nz = 0.0
+    for s in range(spheres.shape[0]):
+        dx, dy, dz = px - spheres[s, 0], py - spheres[s, 1], pz - spheres[s, 2]
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        d = r - spheres[s, 3]
+        if d < best:
+            best = d
+            if r > 0.0:
+                nx, ny, nz = dx / r, dy / r, dz / r
+            else:
+                nx, ny, nz = 0.0, 1.0, 0.0
+            qx = spheres[s, 0] + spheres[s, 3] * nx
+            qy = spheres[s, 1] + spheres[s, 3] * ny
+            qz = spheres[s, 2] + spheres[s, 3] * nz
+    return best, qx, qy, qz, nx, ny, nz
+
+
+@njit
+def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_push, reuse,
+                   p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2):
+    """Contact half-spaces of the points that may touch the body (step 3); returns (contacts, queries).
+
+    In a crease (under the bust, the armpit) a point lies near two surfaces and its closest point
+    jumps from one to the other as it moves: a point whose new plane turned by more than
+    ``CREASE_COS`` from its last one, while still within reach of the last, keeps that one as a
+    second half-space (``c_n2``, ``c_nq2``; ``c_nq2`` NaN when none) and must satisfy both, instead of
+    being pushed to and fro between them."""
+    queries = 0
+    n_c = 0
+    for p in range(v.shape[0]):
+        free = 0.0
+        for k in range(3):
+            if inv_mass[v[p, k]] > 0.0:
+                free += b[p, k]
+        if free < 0.5:
+            continue  # (mostly) pinned: moving the few free vertices would lever them far
+        px, py, pz = _point(x, v, b, p)
+        mx, my, mz = px - p_last[p, 0], py - p_last[p, 1], pz - p_last[p, 2]
+        moved = math.sqrt(mx * mx + my * my + mz * mz)
+        band = skin[p] + reach
+        if d_last[p] - moved >= band:
+            continue
+        if moved < reuse and -math.inf < d_last[p] < band:
+            # the last query's plane still holds (module docstring)
+            d = c_n[p, 0] * px + c_n[p, 1] * py + c_n[p, 2] * pz - c_nq[p]
+            c_h[p] = c_nq[p] + min(skin[p], d + max_push)
+            if c_nq2[p] == c_nq2[p]:
+                d2 = c_n2[p, 0] * px + c_n2[p, 1] * py + c_n2[p, 2] * pz - c_nq2[p]
+                c_h2[p] = c_nq2[p] + min(skin[p], d2 + max_push)
+            c_list[n_c] = p
+            n_c += 1
+            continue
+        was_contact = -math.inf < d_last[p] < band
+        query_out = band + 4.0 * reach  # a looser band makes the clear-distance bound last longer
+        d = query_out
+        qx = qy = qz = nx = ny = nz = 0.0
+        if use_grid:
+            dg, gqx, gqy, gqz, gnx, gny, gnz, t = _query_point(px, py, pz, grid, True, query_out, math.inf)
+            if t >= 0:
+                d, qx, qy, qz, nx, ny, nz = dg, gqx, gqy, gqz, gnx, gny, gnz
+        if spheres.shape[0] > 0:
+            ds, sqx, sqy, sqz, snx, sny, snz = _sphere_query(px, py, pz, spheres)
+            if ds < d:
+                d, qx, qy, qz, nx, ny, nz = ds, sqx, sqy, sqz, snx, sny, snz
+        queries += 1
+        p_last[p, 0], p_last[p, 1], p_last[p, 2] = px, py, pz
+        if not d < band:
+            d_last[p] = min(d, query_out)
+            continue
+        d_last[p] = d
+        c_nq2[p] = math.nan
+        if was_contact and nx * c_n[p, 0] + ny * c_n[p, 1] + nz * c_n[p, 2] < CREASE_COS:
+            d2 = c_n[p, 0] * px + c_n[p, 1] * py + c_n[p, 2] * pz - c_nq[p]
+            if d2 < band:
+                c_n2[p, 0], c_n2[p, 1], c_n2[p, 2] = c_n[p, 0], c_n[p, 1], c_n[p, 2]
+                c_nq2[p] = c_nq[p]
+                c_h2[p] = c_nq[p] + min(skin[p], d2 + max_push)
+        c_n[p, 0], c_n[p, 1], c_n[p, 2] = nx, ny, nz
+        c_nq[p] = nx * qx + ny * qy + nz * qz
+        c_h[p] = c_nq[p] + min(skin[p], d + max_push)
+        c_list[n_c] = p
+        n_c += 1
+    return n_c, queries
+
+
+@njit(inline="always")
+def _project_angle(x, w, i, j, k, cos_lo, cos_hi, relax):
+    """Keep the angle at ``k`` between ``i`` and ``j`` within the band whose cosines are ``cos_lo``
+    (the smallest angle) and ``cos_hi`` (the largest): a PBD angle constraint (its gradient turns the
+    sides about the corner; scaling the quad is not shear). Returns True when it was, or came near
+    being, outside the band (so the later sweeps keep it)."""
+    ux, uy, uz = x[i, 0] - x[k, 0], x[i, 1] - x[k, 1], x[i, 2] - x[k, 2]
+    vx, vy, vz = x[j, 0] - x[k, 0], x[j, 1] - x[k, 1], x[j, 2] - x[k, 2]
+    lu = math.sqrt(ux * ux + uy * uy + uz * uz)
+    lv = math.sqrt(vx * vx + vy * vy + vz * vz)
+    if lu <= 0.0 or lv <= 0.0:
+        return False
+    ux, uy, uz = ux / lu, uy / lu, uz / lu
+    vx, vy, vz = vx / lv, vy / lv, vz / lv
+    cosa = min(max(ux * vx + uy * vy + uz * vz, -1.0), 1.0)
+    # outside the band by cosines (cos falls as the angle grows); a small margin keeps it active
+    if cosa < cos_hi:
+        target = math.acos(cos_hi)
+    elif cosa > cos_lo:
+        target = math.acos(cos_lo)
+    else:
+        return cosa - cos_hi < ACTIVE_BAND or cos_lo - cosa < ACTIVE_BAND
+    sina = math.sqrt(max(1.0 - cosa * cosa, 0.0))
+    if sina < 1e-6:
+        return True
+    cval = math.acos(cosa) - target
+    # d(angle)/d x_i = -(v - cos u) / (|u| sin), d/d x_j = -(u - cos v) / (|v| sin), d/d x_k = -(both)
+    gix, giy, giz = -(vx - cosa * ux) / (lu * sina), -(vy - cosa * uy) / (lu * sina), -(vz - cosa * uz) / (lu * sina)
+    gjx, gjy, gjz = -(ux - cosa * vx) / (lv * sina), -(uy - cosa * vy) / (lv * sina), -(uz - cosa * vz) / (lv * sina)
+    gkx, gky, gkz = -(gix + gjx), -(giy + gjy), -(giz + gjz)
+    den = (w[i] * (gix * gix + giy * giy + giz * giz) + w[j] * (gjx * gjx + gjy * gjy + gjz * gjz)
+           + w[k] * (gkx * gkx + gky * gky + gkz * gkz))
+    if den <= 0.0:
+        return True
+    s = -relax * cval / den
+    x[i, 0] += w[i] * s * gix
+    x[i, 1] += w[i] * s * giy
+    x[i, 2] += w[i] * s * giz
+    x[j, 0] += w[j] * s * gjx
+    x[j, 1] += w[j] * s * gjy
+    x[j, 2] += w[j] * s * gjz
+    x[k, 0] += w[k] * s * gkx
+    x[k, 1] += w[k] * s * gky
+    x[k, 2] += w[k] * s * gkz
+    return True
+
+
+@njit
+def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos_lo, c_cos_hi, lam, at_scale, active,
+                     n_active, first, backward):
+    """One Gauss-Seidel sweep over the distance constraints (module docstring); returns the active count.
+
+    The ``first`` sweep of a substep visits every constraint and lists in ``active`` those holding a
+    force or within ``ACTIVE_BAND`` of their band's ends afterwards; later sweeps visit only those.
+    """
+    n_c = ci.shape[0] if first else n_active
+    n = 0
+    for a0 in range(n_c):
+        a = n_c - 1 - a0 if backward else a0
+        c = a if first else active[a]
+        i = ci[c]
+        j = cj[c]
+        wi = w[i]
+        wj = w[j]
+        wsum = wi + wj
+        if wsum <= 0.0:
+            continue
+        d0 = x[j, 0] - x[i, 0]
+        d1 = x[j, 1] - x[i, 1]
+        d2 = x[j, 2] - x[i, 2]
+        k = c_corner[c]
+        if k >= 0:
+            moved = _project_angle(x, w, i, j, k, c_cos_lo[c], c_cos_hi[c], c_relax[c])
+            if first and moved:
+                active[n] = c
+                n += 1
+            continue
+        length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        hi = c_hi[c]
+        lo = c_lo[c]
+        lc = lam[c]
+        if lc < 0.0 or length > hi:
+            at = c_alpha[c] * at_scale
+            new = min(lc + c_relax[c] * (hi - length - at * lc) / (wsum + at), 0.0)
+        elif lc > 0.0 or length < lo:
+            at = c_alpha[c] * at_scale
+            new = max(lc + c_relax[c] * (lo - length - at * lc) / (wsum + at), 0.0)
+        else:
+            if first and (hi - length < ACTIVE_BAND * hi or length - lo < ACTIVE_BAND * hi):
+                active[n] = c
+                n += 1
+            continue
+        if first:
+            active[n] = c
+            n += 1
+        if length <= 0.0:
+            continue
+        lam[c] = new
+        s = (new - lc) / length
+        x[i, 0] -= wi * s * d0
+        x[i, 1] -= wi * s * d1
+        x[i, 2] -= wi * s * d2
+        x[j, 0] += wj * s * d0
+        x[j, 1] += wj * s * d1
+        x[j, 2] += wj * s * d2
+    return n if first else n_active
+
+
+@njit
+def _solve_contacts(x, inv_mass, v, b, c_n, c_h, c_list, n_c, push, c_n2, c_nq2, c_h2):
+    """Project every contact point onto its half-space(s), spreading the move over its vertices."""
+    for m in range(n_c):
+        p = c_list[m]
+        _push_point(x, inv_mass, v, b, p, c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p], push)
+        if c_nq2[p] == c_nq2[p]:
+            _push_point(x, inv_mass, v, b, p, c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p], push)
+
+
+@njit(inline="always")
+def _push_point(x, inv_mass, v, b, p, nx, ny, nz, h, push):
+    """Move point ``p`` onto the half-space n . p >= h (if outside it), spread over its vertices."""
+    px, py, pz = _point(x, v, b, p)
+    gap = h - (nx * px + ny * py + nz * pz)
+    if gap <= 0.0:
+        return
+    den = 0.0
+    for k in range(3):
+        den += inv_mass[v[p, k]] * b[p, k] * b[p, k]
+    if den <= 0.0:
+        return
+    s = gap / den
+    for k in range(3):
+        ik = v[p, k]
+        dk = inv_mass[ik] * b[p, k] * s
+        if dk == 0.0:
+            continue
+        x[ik, 0] += dk * nx
+        x[ik, 1] += dk * ny
+        x[ik, 2] += dk * nz
+        push[ik, 0] += dk * nx
+        push[ik, 1] += dk * ny
+        push[ik, 2] += dk * nz
+
+
+@njit
+def _friction(x, xp, inv_mass, push, friction, keep_t):
+    """Contact velocity (step 5) of every pushed vertex; ``push`` (n, 3) is its summed push, m."""
+    for i in range(x.shape[0]):
+        p0, p1, p2 = push[i, 0], push[i, 1], push[i, 2]
+        amount = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        if amount <= 0.0 or inv_mass[i] <= 0.0:
+            continue
+        nx, ny, nz = p0 / amount, p1 / amount, p2 / amount
+        vx, vy, vz = x[i, 0] - xp[i, 0], x[i, 1] - xp[i, 1], x[i, 2] - xp[i, 2]
+        vn = vx * nx + vy * ny + vz * nz
+        tx, ty, tz = vx - vn * nx, vy - vn * ny, vz - vn * nz
+        vn_in = vn - amount  # the normal velocity before the push
+        vn_new = max(vn_in, 0.0)
+        vt = math.sqrt(tx * tx + ty * ty + tz * tz)
+        scale = 0.0
+        if vt > 0.0:
+            scale = keep_t * max(0.0, vt - friction * (vn_new - vn_in)) / vt
+        xp[i, 0] = x[i, 0] - (vn_new * nx + scale * tx)
+        xp[i, 1] = x[i, 1] - (vn_new * ny + scale * ty)
+        xp[i, 2] = x[i, 2] - (vn_new * nz + scale * tz)
+
+
+@njit
+def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub_begin, sub_end, sub_total):
+    """Substeps ``sub_begin .. sub_end - 1`` of ``sub_total`` (module docstring); returns the queries made.
+
+    Parameters
+    ----------
+    x, xp : (n, 3) float64, m
+        Positions now / one step ago (in place).
+    cl : ClothArrays
+    pin_idx : (P,) int64;  pin_from, pin_to : (P, 3) float64, m
+        Pinned particles move linearly from ``pin_from`` (start of substep 0) to ``pin_to`` (end of
+        substep ``sub_total - 1``).
+    pts : ContactPoints
+    grid : BodyGrid
+        The body (:mod:`vfit_engine.kernels.collide_mesh`); ignored unless ``prm.use_grid``.
+    prm : StepParams
+    st : ContactState
+        In/out (the contact memory) and scratch.
+    """
+    w, gravity = cl.inv_mass, cl.gravity
+    sp_i, sp_j, sp_rest, sp_k, sp_kd = cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd
+    ci, cj, c_lo, c_hi, c_alpha, c_relax = cl.c_i, cl.c_j, cl.c_lo, cl.c_hi, cl.c_alpha, cl.c_relax
+    c_corner, c_cos_lo, c_cos_hi = cl.c_corner, cl.c_cos_lo, cl.c_cos_hi
+    v, b, skin, spheres = pts.pt_v, pts.pt_b, pts.pt_skin, pts.spheres
+    p_last, d_last, c_n, c_nq, c_h, c_list = st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list
+    push, f, lam, active = st.push, st.f, st.lam, st.active
+    c_n2, c_nq2, c_h2 = st.c_n2, st.c_nq2, st.c_h2
+    dt = prm.dt
+    inv_dt = 1.0 / dt
+    dt2 = dt * dt
+    at_scale = 1.0 / dt2
+    keep = 1.0 - prm.c_air
+    keep_t = 1.0 - prm.c_contact
+    queries = 0
+    for s in range(sub_begin, sub_end):
+        _spring_forces(x, xp, inv_dt, sp_i, sp_j, sp_rest, sp_k, sp_kd, f)
+        _advance_in_place(x, xp, w, f, gravity, keep, dt2)
+        _move_pins(x, pin_idx, pin_from, pin_to, (s + 1.0) / sub_total)
+        n_c, q = _make_contacts(x, w, v, b, skin, spheres, grid, prm.use_grid, prm.reach, prm.max_push, prm.reuse,
+                                p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2)
+        queries += q
+        lam[:] = 0.0
+        push[:] = 0.0
+        n_active = 0
+        for it in range(prm.iterations):
+            n_active = _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos_lo, c_cos_hi, lam,
+                                        at_scale, active, n_active,
+                                        it == 0 or it == prm.iterations - 1, SYMMETRIC and it % 2 == 1)
+            _solve_contacts(x, w, v, b, c_n, c_h, c_list, n_c, push, c_n2, c_nq2, c_h2)
+        _friction(x, xp, w, push, prm.friction, keep_t)
+    return queries
