@@ -1,5 +1,6 @@
 # Two commands for a fresh machine with Python >= 3.10 and make:
 #   make demo   - create .venv, install vfit, build a body to measurements, measure it, drape a skirt on it into out/
+#                 and draw it (out/drape/preview.png)
 #   make test   - create/reuse .venv, install vfit with its test extra, run the test suite
 PYTHON ?= python3
 VENV   := .venv
@@ -22,8 +23,9 @@ demo: install
 	mkdir -p out
 	$(BIN)/vfit morph --waist 72 --bust 90 --hips 98 --height 168 -o out/body.obj --json out/morph.json
 	$(BIN)/vfit measure out/body.obj --json out/measure.json
-	$(BIN)/vfit drape data/garments/skirt.obj --body out/body.obj -o out/drape --every 20 --quiet
+	$(BIN)/vfit drape data/garments/skirt.obj --body out/body.obj -o out/drape --every 20 --quiet --preview
 	@echo "demo written to out/: body.obj, morph.json, measure.json, drape/ (final.obj, report.json, frames)"
+	@echo "look at the draped skirt: out/drape/preview.png"
 
 test: install
 	$(BIN)/python -m pytest -q

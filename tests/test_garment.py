@@ -346,11 +346,12 @@ def test_auto_pins_on_shared_garments_and_default_body():
 def test_demo_skirt_is_reproducible():
     """data/garments/skirt.obj is what vfit_engine.garment.demo_skirt builds on the default body."""
     from vfit_engine.body.model import BodyModel, data_dir
-    from vfit_engine.garment.demo_skirt import tube_skirt
+    from vfit_engine.garment.demo_skirt import flared_skirt
     from vfit_engine.io.mesh import read_mesh
 
     model = BodyModel.load()
-    built = tube_skirt(model.default_verts("female"), model.body_tris)
+    built = flared_skirt(model.default_verts("female"), model.body_tris)
     shipped = read_mesh(data_dir() / "garments" / "skirt.obj")
     assert shipped.n_verts == built.n_verts and np.array_equal(shipped.face_verts, built.face_verts)
     assert np.abs(shipped.verts - built.verts).max() < 1e-8
+    assert np.abs(shipped.uvs - built.uvs).max() < 1e-8 and np.array_equal(shipped.face_uvs, built.face_uvs)
