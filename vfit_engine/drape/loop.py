@@ -82,10 +82,6 @@ class DrapeResult:
 
 def build_solver(setup, settings):
     """The cloth model and solver of a drape (step 1)."""
-    from scipy import sparse
-    from scipy.sparse.csgraph import dijkstra
-
-    from vfit_engine.garment.springs import STRUCTURAL
     from vfit_engine.sim.contact_points import contact_points
     from vfit_engine.sim.model import Model
     from vfit_engine.sim.solver_verlet import SolverVerlet
@@ -99,14 +95,10 @@ def build_solver(setup, settings):
                           spheres=setup.spheres, points=points,
                           colliders=() if setup.project is None else [setup.project])
     solver.sweep_from(setup.pins.indices)
-    if setup.zones:
-        n = model.particle_count
-        st_ = model.spring_type == STRUCTURAL
-        graph = sparse.coo_matrix((model.spring_rest[st_], (model.spring_indices[st_, 0], model.spring_indices[st_, 1])),
-                                  shape=(n, n)).tocsr()
-        for loop, strain in setup.zones:
-            near = dijkstra(graph, directed=False, indices=loop, limit=settings.stretch_zone, min_only=True)
-            solver.allow_stretch(np.flatnonzero(np.isfinite(near)), strain)
+    for zone, strain in setup.zones:
+        # the cloth round an opening the body forces wider may stretch that far, and it starts there
+        solver.allow_stretch(zone, strain)
+        solver.admit(setup.start, zone)
     if settings.admit_gap > 0 and not setup.info["transfer"]["identity"] and setup.info["rest"] == "garment":
         d, _, _, _ = setup.collider.query(setup.start, max_out=settings.admit_gap, max_in=np.inf)
         solver.admit(setup.start, np.flatnonzero(d < settings.admit_gap))

@@ -69,6 +69,9 @@ class DrapeSetup:
     pins : Pins
     openings : list of dict
         :func:`vfit_engine.garment.openings.check_openings` of the rest shape at the start.
+    zones : list of ((k,) int64, float)
+        The cloth round each opening the body forces wider and the strain that opening must take
+        (:func:`vfit_engine.garment.openings.fit_openings`, which also fitted the loop round the body).
     collider : MeshCollider
         The exact body.
     collider_kind : str
@@ -88,6 +91,7 @@ class DrapeSetup:
     material: object
     pins: Pins
     openings: list
+    zones: list
     collider: object
     collider_kind: str = "mesh"
     spheres: np.ndarray | None = None
@@ -98,11 +102,6 @@ class DrapeSetup:
     def rest_mesh(self):
         """MeshData of the rest shape."""
         return self.garment.mesh.with_verts(self.rest)
-
-    @property
-    def zones(self):
-        """[(loop (L,) int64, strain)]: openings the cloth round which may stretch that far."""
-        return [(o["indices"], o["required_strain"]) for o in self.openings if o["required_strain"] > 0]
 
 
 def garment_gender(garment):
@@ -141,7 +140,7 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     from vfit_engine.collide.body_mesh import MeshCollider
     from vfit_engine.drape.colliders import COLLIDERS, fitted_collider
     from vfit_engine.drape.settings import DrapeSettings
-    from vfit_engine.garment.openings import check_openings
+    from vfit_engine.garment.openings import check_openings, fit_openings
     from vfit_engine.garment.placement import made_on, place_garment
     from vfit_engine.garment.transfer import transfer_garment
     from vfit_engine.sim.materials import resolve_material
@@ -164,14 +163,17 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     rest_pos = start if (rest == "graded" and moved) else garment.verts
     collide = MeshCollider(body.surface, tris, skin=st.contact.skin, friction=st.contact.friction)
     pins = _pins(garment, rest_pos, placed, start, body, reference, tris, pin, rest == "graded" and moved, st)
-    openings = check_openings(garment.mesh.with_verts(rest_pos), body.surface, tris, skin=st.contact.skin, pos=start)
+    rest_mesh = garment.mesh.with_verts(rest_pos)
+    openings = check_openings(rest_mesh, body.surface, tris, skin=st.contact.skin, pos=start)
+    start, zones = fit_openings(rest_mesh, start, openings, body.surface, tris, st.contact.skin, st.stretch_zone,
+                                pins.indices)
     spheres = project = None
     if collider != "mesh":
         spheres, project = fitted_collider(collider, model, body, collide, st)
     info = dict(placement=placement, transfer=tinfo, rest="graded" if rest_pos is start else "garment",
                 made_on=made_on(binding, reference, body), setup_time_s=time.perf_counter() - t0)
     return DrapeSetup(garment, np.ascontiguousarray(rest_pos), np.ascontiguousarray(start), body, reference, tris,
-                      mat, pins, openings, collide, collider, spheres, project, info)
+                      mat, pins, openings, zones, collide, collider, spheres, project, info)
 
 
 def _pins(garment, rest_pos, placed, start, body, reference, tris, pin, graded, st):

@@ -7,7 +7,8 @@ it was bound. Draping it where it is would drape it in the air (or over the head
 * a garment whose file deviates from its ``.mhclo`` binding's fit on that body by more than
   ``MAX_BINDING_GAP`` on average is placed by its binding (MakeHuman fits clothes the same way);
 * a garment without a usable binding must sit on the body: its bounding box must overlap the
-  body's and the median distance of its vertices to the body's must be at most ``MAX_BODY_GAP``;
+  body's and it must rest on the body somewhere -- ``NEAR_SHARE`` of its vertices within
+  ``MAX_BODY_GAP`` of a body vertex (a loose skirt or coat touches at its waist or shoulders);
   otherwise it is refused with the distance, since nothing says where it belongs.
 
 The binding's reference distances (``x_scale`` / ``y_scale`` / ``z_scale`` lines: the extent of two
@@ -23,16 +24,10 @@ from vfit_engine.errors import InputError
 #: Mean distance (m) between a garment file and its binding's fit above which the file is taken to be
 #: somewhere else (the MakeHuman suits deviate by 9-17 mm on vfit's average bodies).
 MAX_BINDING_GAP = 0.05
-#: Largest median distance (m) from a garment's vertices to the nearest body vertex for a garment
-#: without a binding (clothes lie within a few centimetres of the skin; a long skirt's hem further).
-MAX_BODY_GAP = 0.05
-
-
-def usable_binding(binding, n_verts):
-    """The binding if it binds exactly the garment's ``n_verts`` vertices, else None."""
-    if binding is None or binding.n_verts != n_verts:
-        return None
-    return binding
+#: A garment without a binding rests on the body: at least NEAR_SHARE of its vertices lie within
+#: MAX_BODY_GAP (m) of a body vertex (body vertices are ~1 cm apart).
+MAX_BODY_GAP = 0.03
+NEAR_SHARE = 0.10
 
 
 def place_garment(garment_verts, reference, binding=None, name="garment"):
@@ -46,7 +41,7 @@ def place_garment(garment_verts, reference, binding=None, name="garment"):
         The body the garment was made for (:class:`vfit_engine.body.resolve.Body`; the binding needs its
         helper vertices).
     binding : MhcloBinding or None
-        Matching the garment's vertices (:func:`usable_binding`).
+        Matching the garment's vertices (:meth:`vfit_engine.garment.garment.Garment.binding`).
     name : str
         For messages (the file name).
 
@@ -55,8 +50,8 @@ def place_garment(garment_verts, reference, binding=None, name="garment"):
     verts : (n, 3) float64, m
     info : dict
         ``placed``: ``file`` (as given) or ``mhclo`` (by the binding); ``file_gap_mm``: mean distance of
-        the file from the binding's fit (None without one); ``body_gap_mm``: median distance of the
-        placed garment's vertices to the nearest body vertex.
+        the file from the binding's fit (None without one); ``body_gap_mm``: the distance to the nearest
+        body vertex that ``NEAR_SHARE`` of the placed garment's vertices are within.
 
     Raises
     ------
@@ -74,12 +69,12 @@ def place_garment(garment_verts, reference, binding=None, name="garment"):
         if gap > MAX_BINDING_GAP:
             pos, info["placed"] = fit, "mhclo"
     body = reference.surface
-    median = _median_gap(pos, body)
-    info["body_gap_mm"] = 1000.0 * median
-    if info["placed"] == "file" and not (_boxes_overlap(pos, body) and median <= MAX_BODY_GAP):
+    near = _near_gap(pos, body)
+    info["body_gap_mm"] = 1000.0 * near
+    if info["placed"] == "file" and not (_boxes_overlap(pos, body) and near <= MAX_BODY_GAP):
         far = _box_distance(pos, body)
         where = (f"{far:.1f} m from the body (bounding boxes do not overlap)" if far > 0 else
-                 f"{100 * median:.1f} cm from the body (median distance of its vertices)")
+                 f"{100 * near:.1f} cm from the body (its nearest {100 * NEAR_SHARE:.0f} % of vertices)")
         raise InputError(f"{name} is {where}; it has no .mhclo binding to place it with: "
                          f"move it onto the body it was made for (MakeHuman's average body) or give its .mhclo")
     return pos, info
@@ -113,13 +108,14 @@ def made_on(binding, reference, body=None):
     return out
 
 
-def _median_gap(points, body):
+def _near_gap(points, body):
+    """Distance (m) to the nearest body vertex within which NEAR_SHARE of ``points`` lie."""
     from scipy.spatial import cKDTree
 
     if not len(points):
         return 0.0
     d, _ = cKDTree(body).query(points)
-    return float(np.median(d))
+    return float(np.quantile(d, NEAR_SHARE))
 
 
 def _boxes_overlap(a, b):

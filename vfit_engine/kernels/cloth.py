@@ -57,10 +57,11 @@ from vfit_engine.kernels.springs import _spring_forces
 #: explicit springs sp_i, sp_j (s,) int64, sp_rest (s,) m, sp_k (s,) N/m, sp_kd (s,) N s/m;
 #: distance constraints in sweep order c_i, c_j (C,) int64, c_lo, c_hi (C,) m, c_alpha (C,) m/N,
 #: c_relax (C,); c_corner (C,) int64 (a shear limit's corner, else -1) and c_cos_lo, c_cos_hi (C,): the
-#: cosines of its corner's smallest and largest angle (an angle constraint instead of a distance).
+#: cosines of its corner's smallest and largest angle (an angle constraint instead of a distance); c_once
+#: (C,) bool: solved in the full sweeps only (weak restoring springs, never in the active set).
 ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", "sp_rest", "sp_k", "sp_kd",
                                          "c_i", "c_j", "c_lo", "c_hi", "c_alpha", "c_relax", "c_corner", "c_cos_lo",
-                                         "c_cos_hi"])
+                                         "c_cos_hi", "c_once"])
 
 #: Contact points: pt_v (P, 3) int64 vertices and pt_b (P, 3) float64 barycentric weights (cloth
 #: vertex i is (i, i, i) with (1, 0, 0)); pt_skin (P,) m, the clearance each keeps; spheres (S, 4)
@@ -236,8 +237,8 @@ def _project_angle(x, w, i, j, k, cos_lo, cos_hi, relax):
 
 
 @njit
-def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos_lo, c_cos_hi, lam, at_scale, active,
-                     n_active, first, backward):
+def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos_lo, c_cos_hi, c_once, lam, at_scale,
+                     active, n_active, first, backward):
     """One Gauss-Seidel sweep over the distance constraints (module docstring); returns the active count.
 
     The ``first`` sweep of a substep visits every constraint and lists in ``active`` those holding a
@@ -280,7 +281,7 @@ def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos
                 active[n] = c
                 n += 1
             continue
-        if first:
+        if first and not c_once[c]:
             active[n] = c
             n += 1
         if length <= 0.0:
@@ -377,7 +378,7 @@ def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub
     w, gravity = cl.inv_mass, cl.gravity
     sp_i, sp_j, sp_rest, sp_k, sp_kd = cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd
     ci, cj, c_lo, c_hi, c_alpha, c_relax = cl.c_i, cl.c_j, cl.c_lo, cl.c_hi, cl.c_alpha, cl.c_relax
-    c_corner, c_cos_lo, c_cos_hi = cl.c_corner, cl.c_cos_lo, cl.c_cos_hi
+    c_corner, c_cos_lo, c_cos_hi, c_once = cl.c_corner, cl.c_cos_lo, cl.c_cos_hi, cl.c_once
     v, b, skin, spheres = pts.pt_v, pts.pt_b, pts.pt_skin, pts.spheres
     p_last, d_last, c_n, c_nq, c_h, c_list = st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list
     push, f, lam, active = st.push, st.f, st.lam, st.active
@@ -400,8 +401,8 @@ def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub
         push[:] = 0.0
         n_active = 0
         for it in range(prm.iterations):
-            n_active = _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos_lo, c_cos_hi, lam,
-                                        at_scale, active, n_active,
+            n_active = _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos_lo, c_cos_hi, c_once,
+                                        lam, at_scale, active, n_active,
                                         it == 0 or it == prm.iterations - 1, SYMMETRIC and it % 2 == 1)
             _solve_contacts(x, w, v, b, c_n, c_h, c_list, n_c, push, c_n2, c_nq2, c_h2)
         _friction(x, xp, w, push, prm.friction, keep_t)

@@ -1,27 +1,41 @@
-"""Position-Verlet cloth solver: explicit bending springs, compliant stretch and shear, surface contacts.
+"""Position-Verlet cloth solver: explicit bending, banded stretch, bend and shear constraints, surface contacts.
 
 ``SolverVerlet(model, settings, contact=..., body=..., points=...)`` advances a
 :class:`~vfit_engine.sim.state.State` by substeps of :func:`vfit_engine.kernels.cloth.cloth_substeps`:
 
-* **explicit** (in the force pass of position Verlet, Verlet 1967 / Jakobsen 2001): the bend springs
-  (damped Hooke springs between second neighbours) and the damping of the stretch and shear springs;
-  when ``stability_safety > 0`` each of their ``k`` and ``kd`` is scaled by ``min(1, s_i, s_j)`` with
+* **explicit forces** (position Verlet, Verlet 1967 / Jakobsen 2001): the bend springs (damped Hooke
+  springs between second neighbours) and the damping of every spring family. When
+  ``stability_safety > 0`` each spring's ``k`` and ``kd`` is scaled by ``min(1, s_i, s_j)`` with
   ``s_i = 4 safety / (2 w_i sum k dt^2 + 4 w_i sum kd dt)`` (Gershgorin's bound on the explicit step:
-  stable when ``lambda dt^2 + 2 gamma dt < 4``), so a spring stiffer than the step can carry becomes
-  as stiff as it allows; :attr:`SolverVerlet.softened_fraction` says how many were;
-* **constraints** (solved ``iterations`` times per substep, Gauss-Seidel, XPBD: Macklin et al. 2016):
-  every structural spring is a distance constraint of compliance ``1 / k`` -- the material's stretch
-  stiffness, not softened -- and every shear spring (a polygon's diagonal) one of compliance ``1 / k``
-  from the shear stiffness, so polygons keep their shape as the fabric's shear modulus says instead
-  of collapsing. With ``stretch_limit`` set, stretch is Provot's hard limit instead (Provot 1995:
-  only longer than ``(1 + limit) l0`` is corrected), the seed's model;
-* **contacts** with the body (an exact triangle mesh, :class:`vfit_engine.collide.body_mesh.MeshCollider`)
-  and/or analytic spheres, for the cloth's vertices and for points spread over its triangles
+  stable when ``lambda dt^2 + 2 gamma dt < 4``): a spring stiffer than the step can carry becomes as
+  stiff as it allows (:attr:`SolverVerlet.softened_fraction`). The margin is wide (0.2 of the bound)
+  because the constraints below stiffen the system the explicit springs act in: at 0.5 they rang
+  against them in cloth the body held stretched, and the drape never settled;
+* **constraints**, solved ``iterations`` times per substep (Gauss-Seidel; XPBD, Macklin et al. 2016;
+  the bands are Provot's strain limits, Provot 1995), each holding a length (or an angle) inside a
+  band and acting only outside it:
+
+  - *stretch*: every polygon edge, free from ``(1 - compression) l0`` to ``(1 + slack) l0`` (a woven's
+    yarns straighten their crimp at almost no load, and cloth buckles rather than compresses), beyond
+    that with the material's stretch stiffness (compliance ``1 / k``, not softened);
+  - *bend limit*: every second-neighbour pair may shorten freely (the cloth folds) but not lengthen
+    beyond ``(1 + bend_limit) l0``: folds modelled into a garment (a turned hem, a collar) keep their
+    turn instead of opening out;
+  - *shear limit*: every corner of every quad or n-gon keeps its angle within ``shear_limit_deg`` of
+    the garment's (an angle constraint, so scaling a quad is not shear): cloth trellises easily up to
+    a locking angle and then jams, and polygons do not collapse;
+  - *shear springs*: each polygon diagonal, with the material's shear stiffness, pulls its quad back
+    to its modelled angles; ``shear_restore`` weighs it lightly where it conflicts with the others;
+
+* **contacts** with the body -- an exact triangle mesh (:class:`vfit_engine.collide.body_mesh.MeshCollider`)
+  and/or spheres -- of the cloth's vertices and of points spread over its triangles
   (:mod:`vfit_engine.sim.contact_points`), solved in the same loop as the constraints;
 * any other collider with ``project(x, x_prev, inv_mass)`` (ellipsoids, hulls) after each substep.
 
-The solver owns every array the kernel reads or writes; callers change the sweep order and the
-push limit through :meth:`SolverVerlet.sweep_from` and :attr:`SolverVerlet.max_push`.
+The solver owns every array the kernel reads or writes: callers set the sweep order, open the bands
+round an opening the body forces wider or to admit a start shape, and ramp the push limit through
+:meth:`SolverVerlet.sweep_from`, :meth:`SolverVerlet.allow_stretch`, :meth:`SolverVerlet.admit` and
+:attr:`SolverVerlet.max_push`.
 """
 from __future__ import annotations
 
@@ -52,16 +66,19 @@ class VerletSettings:
         buckle at once under compression (``compression``: a little keeps the cloth from rippling
         at the scale of its mesh). Beyond the band the material's stretch stiffness acts.
     bend_limit : float or None
-        Provot-style limit on the bend pairs (second neighbours): they may shorten freely (the cloth
-        folds) but not lengthen by more than this, so folds modelled into the garment -- a turned
-        hem, a collar, a lapel -- do not open out. None: bend springs only.
+        Limit on the bend pairs (second neighbours): they may shorten freely (the cloth folds) but not
+        lengthen by more than this, so folds modelled into the garment -- a turned hem, a collar, a
+        lapel -- do not open out. None: bend springs only.
     shear_limit_deg : float or None
-        A quad's corner angles change by at most this (Provot's shear limit, held by its diagonals:
-        ``Model.spring_diagonal_factor`` turns it into a length band); the shear springs act within.
-        None: shear springs only.
+        Polygon corner angles change by at most this (Provot's shear limit, as angle constraints on
+        ``Model.corners``). None: no shear limit, and the shear springs act as explicit springs.
+    shear_restore : float
+        Weight (Gauss-Seidel relaxation) of the compliant shear springs that pull the corners back to
+        their modelled angles within the limit; 0 leaves the corners free within it.
     relax_by_stiffness : bool
-        Weigh the constraints' corrections by their stiffness (``relax``, :mod:`vfit_engine.kernels.cloth`):
-        where the body forces a stretch, the stretch is shared as an elastic sheet shares it.
+        Weigh the stretch constraints' corrections by their stiffness (``relax``,
+        :mod:`vfit_engine.kernels.cloth`): where the body forces a stretch, the stretch is shared as an
+        elastic sheet shares it instead of short stiff edges taking it all.
     stability_safety : float
         Fraction of the explicit stability bound the explicit springs are softened to; 0 disables
         softening.
@@ -227,7 +244,10 @@ class SolverVerlet:
         elif kind == KIND_BEND:
             hi = rest * (1.0 + st.bend_limit)  # shortening (folding) is free, unfolding limited
         else:  # a shear spring pulling its quad back to shape, weighted lightly where it conflicts
-            alpha, relax = 1.0 / k, np.full(springs.size, st.shear_restore)
+            # a band of width 0 (a spring both ways): with lo = 0 it could only pull its long diagonal
+            # in, which the quad satisfies by shrinking inside the stretch's free compression band
+            # while staying sheared (a quad sheared 8 degrees stalled at 3.7, its edges 3.7 % short)
+            lo, alpha, relax = rest.copy(), 1.0 / k, np.full(springs.size, st.shear_restore)
         if st.relax_by_stiffness and kind == KIND_STRETCH and springs.size:
             # Gauss-Seidel settles a conflict where sum relax_e C_e u_e = 0 at every vertex: relax
             # proportional to the stiffness makes that the elastic balance sum k_e C_e u_e = 0
@@ -375,7 +395,7 @@ class SolverVerlet:
                                   np.ascontiguousarray(m.spring_rest[keep]), np.ascontiguousarray(k[keep]),
                                   np.ascontiguousarray(kd[keep]), self._c_i, self._c_j, self._c_lo, self._c_hi,
                                   self._c_alpha, self._c_relax, self._c_corner, np.ascontiguousarray(np.cos(self._t_lo)),
-                                  np.ascontiguousarray(np.cos(self._t_hi)))
+                                  np.ascontiguousarray(np.cos(self._t_hi)), np.ascontiguousarray(self._c_kind == KIND_SHEAR))
         self._c_air = 1.0 - math.exp(-self.settings.air_damping * dt)
         self._const_dt = dt
 
