@@ -1,4 +1,12 @@
-"""Slow, obvious NumPy/Python versions of the cloth kernels, for tests only."""
+"""Slow, obvious NumPy/Python versions of the cloth kernels, for tests only.
+
+Each function copies its inputs and returns the results; the formulas are the ones the kernels'
+docstrings give (:mod:`vfit_engine.kernels.cloth`, :mod:`.springs`, :mod:`.integrate`,
+:mod:`.strain_limit`, :mod:`.collide_sphere`), written out vertex by vertex and constraint by
+constraint.
+"""
+import math
+
 import numpy as np
 
 
@@ -63,12 +71,211 @@ def collide_spheres(x, xp, inv_mass, centres, radii, friction, restitution):
     return x, xp
 
 
-def substep(x, xp, inv_mass, gravity, idx, rest, k, kd, lim_idx, lim_len, iterations, omega,
-            centres, radii, friction, restitution, dt, c_air):
-    """One whole solver substep: forces, Verlet, strain limiting, spheres (copies)."""
-    f = spring_forces(x, xp, dt, idx, rest, k, kd)
-    x_new = integrate(x, xp, inv_mass, f, gravity, dt, c_air)
+# -- the cloth kernel (vfit_engine.kernels.cloth) -------------------------------------------------
+
+def corner_angle(x, i, j, k):
+    """The angle at ``k`` between ``i`` and ``j``, radians."""
+    u, v = x[i] - x[k], x[j] - x[k]
+    return math.atan2(np.linalg.norm(np.cross(u, v)), float(u @ v))
+
+
+def project_angle(x, w, i, j, k, cos_lo, cos_hi, relax):
+    """PBD angle constraint: the angle theta at ``k`` kept in [acos(cos_lo), acos(cos_hi)] (copy).
+
+    Outside the band, C = theta - (the nearer end) and every vertex moves by
+    ``-relax C w_a grad_a theta / sum_b w_b |grad_b theta|^2`` with, for u = x_i - x_k, v = x_j - x_k,
+    grad_i theta = -(v^ - cos u^) / (|u| sin), grad_j theta = -(u^ - cos v^) / (|v| sin),
+    grad_k theta = -(grad_i + grad_j) (a rotation of the whole corner leaves theta unchanged).
+    Returns (x, moved); ``moved``: outside the band, or inside within ``margin`` of an end in cosine.
+    """
+    from vfit_engine.kernels.cloth import ACTIVE_BAND
+
+    x = x.copy()
+    u, v = x[i] - x[k], x[j] - x[k]
+    lu, lv = np.linalg.norm(u), np.linalg.norm(v)
+    if lu <= 0 or lv <= 0:
+        return x, False
+    uh, vh = u / lu, v / lv
+    c = min(max(float(uh @ vh), -1.0), 1.0)
+    if cos_hi <= c <= cos_lo:
+        return x, bool(c - cos_hi < ACTIVE_BAND or cos_lo - c < ACTIVE_BAND)
+    target = math.acos(cos_hi) if c < cos_hi else math.acos(cos_lo)
+    s = math.sqrt(max(1.0 - c * c, 0.0))
+    if s < 1e-6:
+        return x, True
+    gi = -(vh - c * uh) / (lu * s)
+    gj = -(uh - c * vh) / (lv * s)
+    gk = -(gi + gj)
+    den = w[i] * gi @ gi + w[j] * gj @ gj + w[k] * gk @ gk
+    if den <= 0:
+        return x, True
+    lam = -relax * (math.acos(c) - target) / den
+    x[i] += w[i] * lam * gi
+    x[j] += w[j] * lam * gj
+    x[k] += w[k] * lam * gk
+    return x, True
+
+
+def distance_sweep(x, w, c, lam, at_scale, visit=None):
+    """One Gauss-Seidel sweep over the constraints ``visit`` (default: all, in order) (copies).
+
+    ``c`` is a dict of the constraint arrays (``i j lo hi alpha relax corner cos_lo cos_hi once``). A
+    distance constraint outside its band ``[lo, hi]`` (or holding a force: lam != 0) takes the XPBD
+    step ``dlam = relax (-C - at lam) / (w_i + w_j + at)`` with C = l - hi (or l - lo) and
+    ``at = alpha at_scale``, its lam clamped to its side (<= 0 pulling in, >= 0 pushing out), the ends
+    moved by ``-+ w dlam u``. A constraint with a corner is an angle constraint (:func:`project_angle`).
+
+    Returns
+    -------
+    x, lam, active
+        ``active``: the constraints visited that acted, were outside their band, or lie within
+        ``ACTIVE_BAND`` of an end (what the kernel's later sweeps visit), in visit order; never those
+        marked ``once`` (solved in the full sweeps only).
+    """
+    from vfit_engine.kernels.cloth import ACTIVE_BAND
+
+    x, lam = x.copy(), lam.copy()
+    once = c.get("once", np.zeros(len(c["i"]), dtype=bool))
+    active = []
+    for a in (range(len(c["i"])) if visit is None else visit):
+        i, j = c["i"][a], c["j"][a]
+        if w[i] + w[j] <= 0:
+            continue
+        if c["corner"][a] >= 0:
+            x, moved = project_angle(x, w, i, j, c["corner"][a], c["cos_lo"][a], c["cos_hi"][a], c["relax"][a])
+            if moved:
+                active.append(a)
+            continue
+        d = x[j] - x[i]
+        length = math.sqrt(d @ d)
+        lo, hi, at = c["lo"][a], c["hi"][a], c["alpha"][a] * at_scale
+        if lam[a] < 0 or length > hi:  # pulling in: lam <= 0
+            new = min(lam[a] + c["relax"][a] * (hi - length - at * lam[a]) / (w[i] + w[j] + at), 0.0)
+        elif lam[a] > 0 or length < lo:  # pushing out: lam >= 0
+            new = max(lam[a] + c["relax"][a] * (lo - length - at * lam[a]) / (w[i] + w[j] + at), 0.0)
+        else:
+            if not once[a] and (hi - length < ACTIVE_BAND * hi or length - lo < ACTIVE_BAND * hi):
+                active.append(a)
+            continue
+        if not once[a]:
+            active.append(a)
+        if length <= 0:
+            continue
+        u = d / length
+        x[i] -= w[i] * (new - lam[a]) * u
+        x[j] += w[j] * (new - lam[a]) * u
+        lam[a] = new
+    return x, lam, active
+
+
+def contact_point(x, v, b, p):
+    """Position of contact point ``p``: sum_k b_k x_{v_k}."""
+    return b[p, 0] * x[v[p, 0]] + b[p, 1] * x[v[p, 1]] + b[p, 2] * x[v[p, 2]]
+
+
+def push_points(x, w, v, b, planes, push=None):
+    """Each contact point p onto its half-space n . p >= h, in order (copies).
+
+    ``planes`` is a list of (p, n (3,), h). A point below by g > 0 moves its vertices by
+    ``dx_k = w_k b_k g n / sum_j w_j b_j^2`` (PBD point-triangle constraint: the point itself moves by g).
+    ``push`` (n, 3) sums every vertex's moves. Returns (x, push).
+    """
+    x = x.copy()
+    push = np.zeros_like(x) if push is None else push.copy()
+    for p, n, h in planes:
+        n = np.asarray(n, dtype=np.float64)
+        gap = h - n @ contact_point(x, v, b, p)
+        if gap <= 0:
+            continue
+        den = sum(w[v[p, k]] * b[p, k] ** 2 for k in range(3))
+        if den <= 0:
+            continue
+        for k in range(3):
+            dk = w[v[p, k]] * b[p, k] * gap / den
+            x[v[p, k]] += dk * n
+            push[v[p, k]] += dk * n
+    return x, push
+
+
+def contact_velocity(x, xp, w, push, friction, keep_t):
+    """The step's motion of every pushed free vertex, re-expressed through ``xp`` (copy).
+
+    With n the direction of its push (amount |push|), v = x - xp: the normal velocity before the push
+    was vn - |push|; an approaching one becomes 0 (inelastic; a receding one is kept), the pushes add
+    none; the tangential part shrinks by ``friction`` times the normal change (never reversing) and
+    then by the factor ``keep_t``.
+    """
+    xp = xp.copy()
+    for i in range(x.shape[0]):
+        amount = np.linalg.norm(push[i])
+        if amount <= 0 or w[i] <= 0:
+            continue
+        n = push[i] / amount
+        vel = x[i] - xp[i]
+        vn = vel @ n
+        vt = vel - vn * n
+        vn_in = vn - amount
+        vn_new = max(vn_in, 0.0)
+        t = np.linalg.norm(vt)
+        scale = keep_t * max(0.0, t - friction * (vn_new - vn_in)) / t if t > 0 else 0.0
+        xp[i] = x[i] - (vn_new * n + scale * vt)
+    return xp
+
+
+def sphere_contacts(x, w, v, b, skin, spheres, reach, max_push):
+    """Contact half-spaces of the points near the spheres (fresh: every point queried).
+
+    A point whose free vertices carry less than half its weight is skipped. Its nearest sphere (by
+    signed distance d = |p - c| - r; at the centre the normal is +Y) gives the closest point q and
+    normal n; a point with ``d < skin + reach`` gets the half-space
+    ``n . p >= n . q + min(skin, d + max_push)``. Returns [(p, n, h)] in point order.
+    """
+    planes = []
+    for p in range(v.shape[0]):
+        if sum(b[p, k] for k in range(3) if w[v[p, k]] > 0) < 0.5:
+            continue
+        pt = contact_point(x, v, b, p)
+        best = None
+        for cx, cy, cz, r in spheres:
+            d = pt - [cx, cy, cz]
+            dist = np.linalg.norm(d)
+            n = d / dist if dist > 0 else np.array([0.0, 1.0, 0.0])
+            if best is None or dist - r < best[0]:
+                best = (dist - r, n, np.array([cx, cy, cz]) + r * n)
+        if best is None or not best[0] < skin[p] + reach:
+            continue
+        d, n, q = best
+        planes.append((p, n, n @ q + min(skin[p], d + max_push)))
+    return planes
+
+
+def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, max_push, c_contact, alpha_pins):
+    """One substep of the cloth kernel against sphere colliders, fresh contact memory (copies).
+
+    ``cl``: dict with ``inv_mass gravity sp_i sp_j sp_rest sp_k sp_kd`` and the constraint arrays of
+    :func:`distance_sweep`; ``pins``: (idx, from, to) with the pins at ``alpha_pins`` of the way;
+    ``pts``: (verts, bary, skin, spheres). Steps (the kernel's module docstring): explicit springs and
+    gravity, Verlet with air damping; pins; contact half-spaces; ``iterations`` x {constraint sweep,
+    contacts} (the first and last sweeps visit every constraint, the others those the first found
+    active); the contact velocity. Returns (x, xp).
+    """
+    w = cl["inv_mass"]
+    idx = np.stack([cl["sp_i"], cl["sp_j"]], axis=1)
+    f = spring_forces(x, xp, dt, idx, cl["sp_rest"], cl["sp_k"], cl["sp_kd"])
+    x_new = integrate(x, xp, w, f, cl["gravity"], dt, c_air)
     xp_new = x.copy()
-    for _ in range(iterations):
-        x_new = strain_limit_sweep(x_new, inv_mass, lim_idx, lim_len, omega)
-    return collide_spheres(x_new, xp_new, inv_mass, centres, radii, friction, restitution)
+    pin_idx, pin_from, pin_to = pins
+    x_new[pin_idx] = pin_from + alpha_pins * (pin_to - pin_from)
+    v, b, skin, spheres = pts
+    planes = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push)
+    lam = np.zeros(len(cl["i"]))
+    push = np.zeros_like(x_new)
+    active = None
+    for it in range(iterations):
+        every = it == 0 or it == iterations - 1
+        x_new, lam, found = distance_sweep(x_new, w, cl, lam, 1.0 / dt ** 2, None if every else active)
+        if every:
+            active = found
+        x_new, push = push_points(x_new, w, v, b, planes, push)
+    xp_new = contact_velocity(x_new, xp_new, w, push, friction, 1.0 - c_contact)
+    return x_new, xp_new

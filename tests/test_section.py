@@ -201,6 +201,23 @@ def test_hull_perimeter_degenerate():
     assert kg.hull_perimeter(line, order, hull) == pytest.approx(10.0, rel=1e-15)
 
 
+@pytest.mark.parametrize("n", [
+    (0.0, 1.0, 0.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.6, 0.0, 0.8),
+    (3e-9, -1.0, 0.0), (0.0, -1.0, 2e-11), (1e-13, -1.0, 1e-13), (1e-7, 1.0, 0.0), (0.1, -0.995, 0.0),
+])
+def test_rotation_to_y_turns_the_normal_to_y(n):
+    """A proper rotation (orthonormal, det 1) taking n to +Y, also for n within 1e-8 of -Y (where
+    Rodrigues' 1 / (1 + cos) overflows: a ring's plane normal found pointing down)."""
+    from vfit_engine.section import rotation_to_y
+
+    n = np.asarray(n) / np.linalg.norm(n)
+    r = rotation_to_y(n)
+    assert np.all(np.isfinite(r))
+    np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-12)
+    np.testing.assert_allclose(r @ n, [0.0, 1.0, 0.0], atol=1e-12)
+
+
 def _random_loop(rng, n):
     ang = np.sort(rng.uniform(0, 2 * np.pi, n))
     rad = 0.1 + 0.05 * rng.uniform(size=n)

@@ -1,13 +1,14 @@
 """Cloth kernels against analytic cases and the slow references in naive_sim.py."""
+import math
+
 import numpy as np
 import pytest
 
 import naive_sim
-from vfit_engine.garment.springs import grid_polygons, vertex_spring_adjacency
 from vfit_engine.kernels.collide_sphere import collide_spheres
-from vfit_engine.kernels.integrate import integrate_verlet, substeps_parallel, substeps_serial
-from vfit_engine.kernels.springs import eval_spring_forces, eval_spring_forces_gather
-from vfit_engine.kernels.strain_limit import colour_springs, limit_strain
+from vfit_engine.kernels.integrate import integrate_verlet
+from vfit_engine.kernels.springs import eval_spring_forces
+from vfit_engine.kernels.strain_limit import limit_strain
 
 
 def _random_cloth(seed, n=40, s=120):
@@ -25,6 +26,8 @@ def _random_cloth(seed, n=40, s=120):
     inv_mass[rng.choice(n, 4, replace=False)] = 0.0
     return rng, x, xp, idx, rest, k, kd, inv_mass
 
+
+# -- explicit springs, Verlet, Provot limiting (untangling), spheres ------------------------------
 
 def test_spring_pair_force_is_hooke_along_axis_and_sums_to_zero():
     x = np.array([[0.1, 0.2, -0.3], [0.9, 1.4, 0.3]])
@@ -50,9 +53,6 @@ def test_spring_forces_match_reference(seed):
     _, x, xp, idx, rest, k, kd, _ = _random_cloth(seed)
     ref = naive_sim.spring_forces(x, xp, 0.005, idx, rest, k, kd)
     np.testing.assert_allclose(eval_spring_forces(x, xp, 0.005, idx, rest, k, kd), ref, rtol=1e-10, atol=1e-10)
-    off, other, spring = vertex_spring_adjacency(x.shape[0], idx)
-    got = eval_spring_forces_gather(x, xp, 0.005, off, other, rest[spring], k[spring], kd[spring])
-    np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-10)
 
 
 def test_integrate_matches_reference():
@@ -92,17 +92,6 @@ def test_strain_limiting_brings_stretched_chain_within_limit():
     after = np.linalg.norm(np.diff(x, axis=0), axis=1) / rest - 1
     assert after.max() <= 0.10 + 1e-8
     assert np.array_equal(x[0], np.zeros(3))
-
-
-def test_colouring_is_a_proper_edge_colouring():
-    pos, fv, fo = grid_polygons(7, 5)
-    from vfit_engine.garment.springs import build_springs
-    idx = build_springs(fv, fo, pos).indices
-    order, off = colour_springs(idx, pos.shape[0])
-    assert np.array_equal(np.sort(order), np.arange(idx.shape[0]))
-    for c in range(off.size - 1):
-        verts = idx[order[off[c]:off[c + 1]]].ravel()
-        assert np.unique(verts).size == verts.size
 
 
 SPHERE_TABLE = [
@@ -157,29 +146,384 @@ def test_sphere_collide_matches_reference():
     assert np.sum(np.any(got_x != x, axis=1)) > 10
 
 
-@pytest.mark.parametrize("gather, parallel", [(False, False), (True, False), (True, True)])
-def test_fused_substeps_match_reference(gather, parallel):
-    rng, x, xp, idx, rest, k, kd, inv_mass = _random_cloth(5)
-    order, colour_off = colour_springs(idx[::2], x.shape[0])
-    if not parallel:
-        order, colour_off = np.arange(order.size), np.array([0, order.size])
-    lim_idx = idx[::2][order]
-    lim_len = 1.05 * rest[::2][order]
-    off, other, spring = vertex_spring_adjacency(x.shape[0], idx)
-    centres, radii = np.array([[0.0, 0.0, 0.0]]), np.array([0.8])
-    fr, rs = np.array([0.3]), np.array([0.2])
-    g = np.array([0.0, -9.81, 0.0])
-    dt, c_air, iters, omega, n_sub = 0.002, 0.01, 3, 1.2, 4
-    ref_x, ref_xp = x.copy(), xp.copy()
-    for _ in range(n_sub):
-        ref_x, ref_xp = naive_sim.substep(ref_x, ref_xp, inv_mass, g, idx, rest, k, kd, lim_idx, lim_len, iters,
-                                          omega, centres, radii, fr, rs, dt, c_air)
+# -- the cloth kernel's pieces (vfit_engine.kernels.cloth) ------------------------------------------
+
+AT_SCALE = 480.0 ** 2  # 1 / dt^2 at 480 substeps per second
+
+
+def _constraints(rng, x, count=70, angles=25):
+    """Random distance and angle constraints on positions ``x``, shuffled together (a dict of arrays).
+
+    Rest lengths and bands are drawn round the current lengths and angles, so some constraints are
+    too long, some too short, some inside their band and some near its ends; half are compliant.
+    """
+    n = x.shape[0]
+    pairs = np.array([rng.choice(n, 2, replace=False) for _ in range(count)])
+    length = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1)
+    rest = length * rng.uniform(0.8, 1.25, count)
+    alpha = np.where(rng.random(count) < 0.5, 0.0, rng.uniform(1e-7, 1e-5, count))  # at = 0.02 .. 2.3
+    tri = np.array([rng.choice(n, 3, replace=False) for _ in range(angles)])
+    theta = np.array([naive_sim.corner_angle(x, i, j, k) for i, j, k in tri])
+    lo = np.clip(theta + rng.uniform(-0.3, 0.2, angles), 0.01, math.pi - 0.2)
+    hi = np.minimum(lo + rng.uniform(0.02, 0.3, angles), math.pi - 0.01)
+    c = dict(i=np.concatenate([pairs[:, 0], tri[:, 0]]), j=np.concatenate([pairs[:, 1], tri[:, 1]]),
+             corner=np.concatenate([np.full(count, -1), tri[:, 2]]),
+             lo=np.concatenate([rest * rng.uniform(0.6, 0.97, count), np.zeros(angles)]),
+             hi=np.concatenate([rest * rng.uniform(1.0, 1.05, count), np.zeros(angles)]),
+             alpha=np.concatenate([alpha, np.zeros(angles)]),
+             relax=np.concatenate([rng.uniform(0.1, 1.0, count), rng.uniform(0.3, 1.0, angles)]),
+             cos_lo=np.concatenate([np.ones(count), np.cos(lo)]), cos_hi=np.concatenate([np.ones(count), np.cos(hi)]),
+             once=np.concatenate([rng.random(count) < 0.2, np.zeros(angles, bool)]))
+    order = rng.permutation(count + angles)
+    c = {k: np.ascontiguousarray(v[order]) for k, v in c.items()}
+    c["i"], c["j"], c["corner"] = (c[k].astype(np.int64) for k in ("i", "j", "corner"))
+    return c
+
+
+def _kernel_sweep(x, w, c, lam, active, n_active, first):
+    from vfit_engine.kernels.cloth import _solve_distances
+
+    n = _solve_distances(x, w, c["i"], c["j"], c["lo"], c["hi"], c["alpha"], c["relax"], c["corner"], c["cos_lo"],
+                         c["cos_hi"], c["once"], lam, AT_SCALE, active, n_active, first, False)
+    return n
+
+
+def _sweep_data(seed, n=30):
+    rng = np.random.default_rng(seed)
+    x = 0.05 * rng.normal(size=(n, 3))
+    w = rng.uniform(20.0, 200.0, n)  # 5 .. 50 g particles
+    w[rng.choice(n, 3, replace=False)] = 0.0
+    return rng, x, w, _constraints(rng, x)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_distance_sweep_matches_reference(seed):
+    """One XPBD sweep (bands, compliance, relax, angle constraints), then a later sweep over the
+    constraints the first found active, carrying lam."""
+    rng, x, w, c = _sweep_data(seed)
+    lam0 = np.zeros(c["i"].size)
+    ref_x, ref_lam, ref_active = naive_sim.distance_sweep(x, w, c, lam0, AT_SCALE)
+    got_x, got_lam, active = x.copy(), lam0.copy(), np.zeros(c["i"].size, np.int64)
+    n = _kernel_sweep(got_x, w, c, got_lam, active, 0, True)
+    np.testing.assert_allclose(got_x, ref_x, rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(got_lam, ref_lam, rtol=1e-10, atol=1e-15)
+    assert active[:n].tolist() == ref_active
+    # the data exercise every branch: pulls, pushes, angles, and constraints left alone
+    assert np.any(ref_lam < 0) and np.any(ref_lam > 0)
+    assert 0 < n < c["i"].size and np.any(c["corner"][active[:n]] >= 0)
+    moved = np.any(ref_x != x, axis=1)
+    assert np.array_equal(ref_x[w == 0], x[w == 0]) and moved.sum() > 10
+    listed = active[:n].tolist()
+    ref_x2, ref_lam2, _ = naive_sim.distance_sweep(ref_x, w, c, ref_lam, AT_SCALE, visit=listed)
+    assert _kernel_sweep(got_x, w, c, got_lam, active, n, False) == n
+    np.testing.assert_allclose(got_x, ref_x2, rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(got_lam, ref_lam2, rtol=1e-10, atol=1e-15)
+
+
+def test_distance_sweep_with_held_forces_matches_reference():
+    """lam carried in with both signs: the one-sided clamp (a pulling constraint never pushes)."""
+    rng, x, w, c = _sweep_data(7)
+    lam0 = rng.choice([-1.0, 0.0, 1.0], c["i"].size) * rng.uniform(1e-4, 3e-3, c["i"].size)
+    lam0[c["corner"] >= 0] = 0.0
+    ref_x, ref_lam, ref_active = naive_sim.distance_sweep(x, w, c, lam0, AT_SCALE)
+    got_x, got_lam, active = x.copy(), lam0.copy(), np.zeros(c["i"].size, np.int64)
+    n = _kernel_sweep(got_x, w, c, got_lam, active, 0, True)
+    np.testing.assert_allclose(got_x, ref_x, rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(got_lam, ref_lam, rtol=1e-10, atol=1e-15)
+    assert active[:n].tolist() == ref_active
+    # some held forces were released to exactly zero rather than changing sign
+    released = (lam0 != 0) & (ref_lam == 0)
+    assert released.sum() >= 3
+    assert np.all(ref_lam[lam0 < 0] <= 0) and np.all(ref_lam[lam0 > 0] >= 0)
+
+
+def test_once_constraints_stay_out_of_the_active_set():
+    """A ``c_once`` constraint (a weak restoring spring) is solved in the full sweeps only: the first
+    sweep never lists it for the later sweeps, whether it acted or lies near its band's end."""
+    x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [3.0, 0.0, 0.0], [4.2, 0.0, 0.0]])
+    c = dict(i=np.array([0, 2]), j=np.array([1, 3]), corner=np.array([-1, -1]), lo=np.zeros(2),
+             hi=np.array([1.001, 1.0]), alpha=np.zeros(2), relax=np.ones(2), cos_lo=np.ones(2), cos_hi=np.ones(2),
+             once=np.ones(2, bool))  # the first within 0.1 % of its top (inside its band), the second too long
+    active = np.zeros(2, np.int64)
+    n = _kernel_sweep(x, np.ones(4), c, np.zeros(2), active, 0, True)
+    assert np.linalg.norm(x[3] - x[2]) == pytest.approx(1.0)  # the too long one acted
+    assert n == 0, active[:n]
+
+
+def _pair(length, lo=0.5, hi=1.0, alpha=0.0, relax=1.0, lam=0.0):
+    x = np.array([[0.0, 0.0, 0.0], [length, 0.0, 0.0]])
+    c = dict(i=np.array([0]), j=np.array([1]), corner=np.array([-1]), lo=np.array([lo]), hi=np.array([hi]),
+             alpha=np.array([alpha]), relax=np.array([relax]), cos_lo=np.ones(1), cos_hi=np.ones(1),
+             once=np.zeros(1, bool))
+    lam_a = np.array([lam])
+    _kernel_sweep(x, np.ones(2), c, lam_a, np.zeros(1, np.int64), 0, True)
+    return np.linalg.norm(x[1] - x[0]), lam_a[0], x
+
+
+def test_distance_constraint_analytic_cases():
+    # stiff (alpha 0, relax 1): a stretched pair ends exactly at the top of its band, a squeezed one
+    # at the bottom, one inside its band is left alone; both ends move the same (equal masses)
+    length, lam, x = _pair(1.2)
+    assert length == pytest.approx(1.0, abs=1e-15) and lam == pytest.approx(-0.1, abs=1e-15)
+    np.testing.assert_allclose(x[:, 0], [0.1, 1.1], atol=1e-15)
+    assert _pair(0.4)[:2] == pytest.approx((0.5, 0.05), abs=1e-15)
+    assert _pair(0.8)[:2] == (0.8, 0.0)
+    # compliant (XPBD): l' = l + W (hi - l) / (W + alpha / dt^2), W = w_i + w_j
+    at = 1e-5 * AT_SCALE
+    assert _pair(1.2, alpha=1e-5)[0] == pytest.approx(1.2 + 2.0 * (1.0 - 1.2) / (2.0 + at), abs=1e-14)
+    # relax scales the correction
+    assert _pair(1.2, relax=0.25)[0] == pytest.approx(1.2 - 0.25 * 0.2, abs=1e-14)
+    # a constraint that held a pull of 0.01 and is now inside its band gives back only that pull
+    # (its ends part by 2 x 0.01), never pushing: lam is clamped to 0, not turned positive
+    length, lam, _ = _pair(0.9, lam=-0.01)
+    assert lam == 0.0 and length == pytest.approx(0.92, abs=1e-14)
+    length, lam, _ = _pair(0.9, lam=0.01)  # a held push, now inside its band: gives back only that push
+    assert lam == 0.0 and length == pytest.approx(0.88, abs=1e-14)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_project_angle_matches_reference(seed):
+    from vfit_engine.kernels.cloth import _project_angle
+
+    rng = np.random.default_rng(seed)
+    n_moved = 0
+    for _ in range(40):
+        x = rng.normal(size=(3, 3))
+        w = rng.uniform(0.5, 2.0, 3)
+        if rng.random() < 0.4:
+            w[rng.integers(0, 3)] = 0.0  # one end or the corner pinned
+        theta = naive_sim.corner_angle(x, 0, 1, 2)
+        lo = np.clip(theta + rng.uniform(-0.4, 0.2), 0.01, 3.0)
+        hi = min(lo + rng.uniform(0.01, 0.3), 3.1)
+        relax = rng.uniform(0.2, 1.0)
+        ref, ref_moved = naive_sim.project_angle(x, w, 0, 1, 2, math.cos(lo), math.cos(hi), relax)
+        got = x.copy()
+        moved = _project_angle(got, w, 0, 1, 2, math.cos(lo), math.cos(hi), relax)
+        np.testing.assert_allclose(got, ref, rtol=1e-11, atol=1e-14)
+        assert moved == ref_moved
+        n_moved += not np.array_equal(ref, x)
+    assert 10 < n_moved < 40
+
+
+def test_project_angle_analytic():
+    from vfit_engine.kernels.cloth import _project_angle
+
+    def corner(deg):
+        a = math.radians(deg)
+        return np.array([[1.0, 0.0, 0.0], [math.cos(a), math.sin(a), 0.0], [0.0, 0.0, 0.0]])
+
+    w = np.ones(3)
+    band = math.cos(math.radians(80.0)), math.cos(math.radians(100.0))
+    # a corner of 78 degrees with its band at [80, 100]: opened to 80 (to first order)
+    x = corner(78.0)
+    assert _project_angle(x, w, 0, 1, 2, *band, 1.0)
+    assert math.degrees(naive_sim.corner_angle(x, 0, 1, 2)) == pytest.approx(80.0, abs=0.05)
+    # 103 degrees: closed to 100; half the relaxation: half-way
+    x = corner(103.0)
+    _project_angle(x, w, 0, 1, 2, *band, 1.0)
+    assert math.degrees(naive_sim.corner_angle(x, 0, 1, 2)) == pytest.approx(100.0, abs=0.05)
+    x = corner(103.0)
+    _project_angle(x, w, 0, 1, 2, *band, 0.5)
+    assert math.degrees(naive_sim.corner_angle(x, 0, 1, 2)) == pytest.approx(101.5, abs=0.05)
+    # far outside (60 degrees): one projection brings it into the band, where it then stays
+    x = corner(60.0)
+    _project_angle(x, w, 0, 1, 2, *band, 1.0)
+    angle = math.degrees(naive_sim.corner_angle(x, 0, 1, 2))
+    assert 80.0 <= angle <= 85.0
+    before = x.copy()
+    assert not _project_angle(x, w, 0, 1, 2, *band, 1.0) and np.array_equal(x, before)
+    # the corner pinned (w = 0) stays where it is, the ends turn about it (their distances to it
+    # kept to first order), each by half the correction
+    x = corner(110.0)
+    _project_angle(x, np.array([1.0, 1.0, 0.0]), 0, 1, 2, *band, 1.0)
+    assert np.array_equal(x[2], np.zeros(3))
+    assert math.degrees(naive_sim.corner_angle(x, 0, 1, 2)) == pytest.approx(100.0, abs=0.1)
+    np.testing.assert_allclose(np.linalg.norm(x[:2], axis=1), 1.0, atol=0.005)
+    assert math.degrees(math.atan2(x[0, 1], x[0, 0])) == pytest.approx(5.0, abs=0.1)
+
+
+def _random_points(rng, n, count):
+    """``count`` random contact points over random vertex triples, and the n vertices themselves."""
+    tri = np.array([rng.choice(n, 3, replace=False) for _ in range(count)])
+    b = rng.dirichlet(np.ones(3), count)
+    v = np.concatenate([np.repeat(np.arange(n)[:, None], 3, axis=1), tri]).astype(np.int64)
+    b = np.concatenate([np.tile([1.0, 0.0, 0.0], (n, 1)), b])
+    return np.ascontiguousarray(v), np.ascontiguousarray(b)
+
+
+def test_solve_contacts_matches_reference():
+    from vfit_engine.kernels.cloth import _solve_contacts
+
+    rng = np.random.default_rng(11)
+    n = 25
+    x = rng.normal(size=(n, 3)) * 0.1
+    w = rng.uniform(20.0, 200.0, n)
+    w[:3] = 0.0
+    v, b = _random_points(rng, n, 60)
+    p = v.shape[0]
+    normal = rng.normal(size=(p, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    pos = np.einsum("pk,pkd->pd", b, x[v])
+    h = np.einsum("pd,pd->p", normal, pos) + rng.uniform(-0.02, 0.02, p)  # about half below their plane
+    n2 = rng.normal(size=(p, 3))
+    n2 /= np.linalg.norm(n2, axis=1, keepdims=True)
+    h2 = np.einsum("pd,pd->p", n2, pos) + rng.uniform(-0.02, 0.02, p)
+    nq2 = np.where(rng.random(p) < 0.3, 0.0, np.nan)  # a second plane (a crease) for some
+    listed = np.ascontiguousarray(rng.permutation(p)[:70])
+    planes = []
+    for q in listed:
+        planes.append((q, normal[q], h[q]))
+        if nq2[q] == nq2[q]:
+            planes.append((q, n2[q], h2[q]))
+    ref_x, ref_push = naive_sim.push_points(x, w, v, b, planes)
+    got_x, push = x.copy(), np.zeros_like(x)
+    c_list = np.zeros(p, np.int64)
+    c_list[:listed.size] = listed
+    _solve_contacts(got_x, w, v, b, normal, h, c_list, listed.size, push, n2, nq2, h2)
+    np.testing.assert_allclose(got_x, ref_x, rtol=1e-11, atol=1e-14)
+    np.testing.assert_allclose(push, ref_push, rtol=1e-11, atol=1e-14)
+    assert np.array_equal(got_x[w == 0], x[w == 0]) and np.count_nonzero(np.any(push != 0, axis=1)) > 10
+
+
+def test_contact_point_is_pushed_exactly_onto_its_plane():
+    """A point inside a triangle below its plane by g: the point (not only its vertices) rises by g,
+    the vertices in proportion w_k b_k; with a pinned vertex the free ones rise more."""
+    from vfit_engine.kernels.cloth import _solve_contacts
+
+    x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    v = np.array([[0, 1, 2]], np.int64)
+    b = np.array([[0.5, 0.3, 0.2]])
+    up = np.array([[0.0, 1.0, 0.0]])
+    for w in (np.ones(3), np.array([0.0, 1.0, 1.0])):
+        got, push = x.copy(), np.zeros((3, 3))
+        _solve_contacts(got, w, v, b, up, np.array([0.01]), np.zeros(1, np.int64), 1, push, up, np.full(1, np.nan),
+                        np.zeros(1))
+        assert b[0] @ got[:, 1] == pytest.approx(0.01, abs=1e-16)
+        np.testing.assert_allclose(got[:, 1], 0.01 * w * b[0] / np.sum(w * b[0] ** 2), atol=1e-16)
+        assert np.array_equal(got[:, [0, 2]], x[:, [0, 2]]) and np.array_equal(push, got - x)
+
+
+def test_friction_matches_reference_and_analytic():
+    from vfit_engine.kernels.cloth import _friction
+
+    rng = np.random.default_rng(12)
+    n = 60
+    x = rng.normal(size=(n, 3))
+    xp = x - 0.01 * rng.normal(size=(n, 3))
+    push = 0.01 * rng.normal(size=(n, 3)) * (rng.random(n) < 0.7)[:, None]
+    w = np.ones(n)
+    w[:4] = 0.0
+    for mu, keep in ((0.0, 1.0), (0.8, 1.0), (0.5, 0.7)):
+        ref = naive_sim.contact_velocity(x, xp, w, push, mu, keep)
+        got = xp.copy()
+        _friction(x, got, w, push, mu, keep)
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-15)
+        assert np.array_equal(got[~np.any(push != 0, axis=1)], xp[~np.any(push != 0, axis=1)])
+    # one vertex pushed up by 1 mm while it moved down 3 mm and sideways 5 mm in the step: its
+    # approaching normal velocity goes (the push adds none), the sideways one loses mu x 3 mm
+    x1, xp1 = np.array([[0.0, 0.0, 0.0]]), np.array([[-0.005, 0.002, 0.0]])  # moved (+5, -2) mm after the push
+    push1 = np.array([[0.0, 0.001, 0.0]])
+    _friction(x1, xp1, np.ones(1), push1, 0.5, 1.0)
+    np.testing.assert_allclose(x1 - xp1, [[0.005 - 0.5 * 0.003, 0.0, 0.0]], atol=1e-16)
+    xp1 = np.array([[-0.005, 0.002, 0.0]])
+    _friction(x1, xp1, np.ones(1), push1, 2.0, 1.0)  # friction enough to stop it: never reverses
+    np.testing.assert_allclose(x1 - xp1, 0.0, atol=1e-16)
+
+
+def test_make_contacts_with_spheres_matches_reference():
+    from vfit_engine.kernels.cloth import _make_contacts
+
+    rng = np.random.default_rng(13)
+    n = 40
+    x = rng.uniform(-0.12, 0.12, size=(n, 3))
+    w = np.ones(n)
+    w[:8] = 0.0
+    v, b = _random_points(rng, n, 80)
+    p = v.shape[0]
+    skin = np.where(np.arange(p) < n, 0.002, 0.001)
+    spheres = np.array([[0.0, 0.0, 0.0, 0.1], [0.05, 0.02, 0.0, 0.08]])
+    reach, max_push = 0.01, 0.001
+    planes = naive_sim.sphere_contacts(x, w, v, b, skin, spheres, reach, max_push)
+    st = _fresh_contact_state(p, n, 0)
+    count, queries = _make_contacts(x, w, v, b, skin, spheres, _tiny_grid(), False, reach, max_push, 0.0,
+                                    st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2,
+                                    st.c_h2)
+    got = st.c_list[:count]
+    assert got.tolist() == [q for q, _, _ in planes] and 10 < count < p - 10
+    np.testing.assert_allclose(st.c_n[got], [nq for _, nq, _ in planes], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(st.c_h[got], [h for _, _, h in planes], rtol=1e-12, atol=1e-15)
+    assert np.all(np.isnan(st.c_nq2[got]))
+    # points with most of their weight on pinned vertices are not queried
+    free = np.array([sum(b[q, k] for k in range(3) if w[v[q, k]] > 0) for q in range(p)])
+    assert queries == np.count_nonzero(free >= 0.5) < p
+
+
+def _tiny_grid():
+    """A body grid the kernel is told not to use (``use_grid`` False): a small box's."""
+    import trimesh
+
+    from vfit_engine.collide.body_mesh import MeshCollider
+
+    box = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
+    return MeshCollider(box.vertices + [5.0, 5.0, 5.0], box.faces).grid
+
+
+def _fresh_contact_state(p, n, c):
+    from vfit_engine.kernels.cloth import ContactState
+
+    return ContactState(p_last=np.zeros((p, 3)), d_last=np.full(p, -np.inf), c_n=np.zeros((p, 3)), c_nq=np.zeros(p),
+                        c_h=np.zeros(p), c_list=np.zeros(p, np.int64), push=np.zeros((n, 3)), f=np.zeros((n, 3)),
+                        lam=np.zeros(c), active=np.zeros(c, np.int64), c_n2=np.zeros((p, 3)), c_nq2=np.full(p, np.nan),
+                        c_h2=np.zeros(p))
+
+
+@pytest.mark.parametrize("iterations", [1, 4])
+def test_cloth_substep_matches_reference(iterations):
+    """One whole substep (springs, Verlet, pins, contacts with spheres, constraint sweeps, contact
+    velocity) of a sheet lying over two spheres, against the reference built from the pieces."""
+    from vfit_engine.garment.springs import grid_polygons
+    from vfit_engine.kernels.cloth import ClothArrays, ContactPoints, StepParams, cloth_substeps
+    from vfit_engine.sim.contact_points import contact_points
+
+    rng = np.random.default_rng(21)
+    pos, fv, fo = grid_polygons(6, 6, 0.16, 0.16)
+    n = pos.shape[0]
+    x = np.ascontiguousarray(pos + [0.0, 0.093, 0.0] + rng.normal(0, 0.002, pos.shape))  # the middle inside
+    xp = np.ascontiguousarray(x - rng.normal(0, 0.0005, x.shape))
+    w = rng.uniform(50.0, 150.0, n)
+    pin_idx = np.array([0, n - 1], np.int64)
+    w[pin_idx] = 0.0
+    pin_from = x[pin_idx].copy()
+    pin_to = pin_from + [0.0, 0.004, 0.001]
+    c = _constraints(rng, x, count=80, angles=20)
+    sp = np.array([rng.choice(n, 2, replace=False) for _ in range(40)])
+    sp_rest = np.linalg.norm(x[sp[:, 1]] - x[sp[:, 0]], axis=1) * rng.uniform(0.9, 1.1, 40)
+    sp_k, sp_kd = rng.uniform(0.0, 5.0, 40), rng.uniform(0.0, 0.01, 40)
+    gravity = np.array([0.0, -9.81, 0.0])
+    cl = dict(inv_mass=w, gravity=gravity, sp_i=sp[:, 0].copy(), sp_j=sp[:, 1].copy(), sp_rest=sp_rest, sp_k=sp_k,
+              sp_kd=sp_kd, **c)
+    pts = contact_points(fv, fo, pos, spacing=0.015)
+    skin = np.where(np.arange(pts.count) < n, 0.002, 0.001)
+    spheres = np.array([[0.0, 0.0, 0.0, 0.1], [0.06, 0.0, 0.03, 0.095]])
+    dt, c_air, reach, friction, max_push, c_contact = 1 / 480, 0.01, 0.002, 0.8, 0.001, 0.1
+    ref_x, ref_xp = naive_sim.cloth_substep(x, xp, cl, (pin_idx, pin_from, pin_to),
+                                            (pts.verts, pts.bary, skin, spheres), dt, c_air, iterations, reach,
+                                            friction, max_push, c_contact, alpha_pins=1.0)
+    arrays = ClothArrays(inv_mass=w, gravity=gravity, sp_i=cl["sp_i"], sp_j=cl["sp_j"], sp_rest=sp_rest, sp_k=sp_k,
+                         sp_kd=sp_kd, c_i=c["i"], c_j=c["j"], c_lo=c["lo"], c_hi=c["hi"], c_alpha=c["alpha"],
+                         c_relax=c["relax"], c_corner=c["corner"], c_cos_lo=c["cos_lo"], c_cos_hi=c["cos_hi"],
+                         c_once=c["once"])
+    prm = StepParams(dt=dt, c_air=c_air, iterations=iterations, reach=reach, friction=friction, max_push=max_push,
+                     c_contact=c_contact, reuse=0.0, use_grid=False)
+    st = _fresh_contact_state(pts.count, n, c["i"].size)
     got_x, got_xp = x.copy(), xp.copy()
-    kernel = substeps_parallel if parallel else substeps_serial
-    kernel(got_x, got_xp, inv_mass, g, gather, idx[:, 0].copy(), idx[:, 1].copy(), rest, k, kd,
-                    off, other, rest[spring], k[spring], kd[spring], lim_idx[:, 0].copy(), lim_idx[:, 1].copy(),
-                    lim_len, colour_off, iters, omega, centres, radii, fr, rs,
-                    np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), dt, c_air, 0, n_sub, n_sub,
-                    np.zeros_like(x), np.zeros_like(x))
-    np.testing.assert_allclose(got_x, ref_x, rtol=1e-9, atol=1e-11)
-    np.testing.assert_allclose(got_xp, ref_xp, rtol=1e-9, atol=1e-11)
+    queries = cloth_substeps(got_x, got_xp, arrays, pin_idx, pin_from, pin_to,
+                             ContactPoints(pt_v=pts.verts, pt_b=pts.bary, pt_skin=skin, spheres=spheres), _tiny_grid(),
+                             prm, st, 0, 1, 1)
+    np.testing.assert_allclose(got_x, ref_x, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(got_xp, ref_xp, rtol=1e-9, atol=1e-12)
+    free = np.einsum("pk,pk->p", pts.bary, w[pts.verts] > 0) >= 0.5
+    assert queries == np.count_nonzero(free) > 0.9 * pts.count
+    np.testing.assert_allclose(got_x[pin_idx], pin_to, atol=1e-15)
+    # the case is not trivial: contacts pushed points out, by at most max_push from inside
+    assert np.count_nonzero(np.any(st.push != 0, axis=1)) > 5

@@ -11,7 +11,8 @@ from vfit_engine.garment.springs import (BEND, SHEAR, STRUCTURAL, build_springs,
                                          spring_constants, vertex_masses)
 from vfit_engine.sim.materials import PRESETS, Material, load_material, resolve_material
 from vfit_engine.sim.model import Model
-from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
+from vfit_engine.sim.contact_points import contact_points
+from vfit_engine.sim.solver_verlet import ContactSettings, SolverVerlet, VerletSettings
 
 
 def _tri_polys(faces):
@@ -141,8 +142,10 @@ def test_undamped_free_fall_is_exact():
 
 
 def _spring_pair(kd=0.0):
+    """Two particles and an explicit Hooke spring (a bend spring: with ``bend_limit=None`` it is no
+    constraint), stretched 30 %."""
     pos = np.array([[0.0, 0.0, 0.0], [1.3, 0.0, 0.0]])
-    return Model.create(pos, [[0, 1]], [1.0], [50.0], [kd], [STRUCTURAL], [1.0, 1.0])
+    return Model.create(pos, [[0, 1]], [1.0], [50.0], [kd], [BEND], [1.0, 1.0])
 
 
 def _pair_energy(model, state):
@@ -154,27 +157,31 @@ def _pair_energy(model, state):
 @pytest.mark.parametrize("air", [0.0, 2.0])
 def test_air_damping_makes_oscillation_energy_decay(air):
     model = _spring_pair()
-    settings = VerletSettings(gravity=(0, 0, 0), air_damping=air, strain_limit=10.0, stability_safety=0)
+    settings = VerletSettings(gravity=(0, 0, 0), air_damping=air, bend_limit=None, stability_safety=0)
     solver = SolverVerlet(model, settings)
+    assert solver.constraint_count == 0
     dt = 1e-3
     state = solver.init_state(dt)
     e0 = _pair_energy(model, state)
+    lengths = []
     for _ in range(2000):
         solver.step(state, dt)
+        lengths.append(np.linalg.norm(state.pos[1] - state.pos[0]))
     e1 = _pair_energy(model, state)
+    assert min(lengths) < 0.8  # it oscillated (through its rest length), as a spring of 50 N/m does
     if air == 0.0:
         assert abs(e1 / e0 - 1) < 0.02  # Verlet conserves energy up to O(dt^2) wiggles
     else:
         assert e1 < 0.05 * e0  # exp(-2 * 2 s) ~ 0.018
 
 
-def _hanging_cloth(n=8, parallel=False, **kw):
+def _hanging_cloth(n=8, **kw):
     pos, fv, fo = grid_polygons(n, n, 0.4, 0.4)
     pos = pos[:, [0, 2, 1]]  # vertical cloth in the XY plane
     top = np.nonzero(pos[:, 1] == pos[:, 1].max())[0]
     pins = top[[0, -1]]
     model = Model.from_polygons(fv, fo, pos, "cotton", pin_indices=pins)
-    settings = VerletSettings(substeps=8, air_damping=2.0, parallel=parallel, **kw)
+    settings = VerletSettings(substeps=8, air_damping=2.0, **kw)
     return model, SolverVerlet(model, settings)
 
 
@@ -201,41 +208,59 @@ def test_pins_follow_moving_targets():
     np.testing.assert_allclose(state.velocity()[model.pin_indices], [[0.05 * 60, 0, 0]] * 2, rtol=1e-9)
 
 
-def _drape(n, frames, parallel=False, wrap=False):
+SPHERE_R = 0.3
+
+
+def _sphere_drape(n, frames, project=False):
+    """A flat sheet dropped onto a sphere: in the kernel (``spheres``, vertices and surface points)
+    or, with ``project``, through a collider's ``project`` after every substep."""
     pos, fv, fo = grid_polygons(n, n, 1.0, 1.0)
     pos[:, 1] = 0.5
     model = Model.from_polygons(fv, fo, pos, "cotton")
-    sphere = SphereCollider([[0.0, 0.0, 0.0]], [0.3], skin=0.01, friction=0.5)
-    if wrap:  # hide sphere_arrays: the solver must call project() every substep
-        class Plain:
-            def project(self, x, x_prev, inv_mass):
-                sphere.project(x, x_prev, inv_mass)
-        colliders = [Plain()]
+    settings = VerletSettings(substeps=10)
+    if project:
+        sphere = SphereCollider([[0.0, 0.0, 0.0]], [SPHERE_R], skin=0.01, friction=0.5)
+        solver = SolverVerlet(model, settings, colliders=[sphere])
     else:
-        colliders = [sphere]
-    settings = VerletSettings(substeps=10, bend_strain_limit=0.10, parallel=parallel)
-    solver = SolverVerlet(model, settings, colliders)
+        solver = SolverVerlet(model, settings, ContactSettings(friction=0.5), spheres=[[0.0, 0.0, 0.0, SPHERE_R]],
+                              points=contact_points(fv, fo, pos, spacing=0.03))
     state = solver.init_state(1 / 600)
     for _ in range(frames):
         solver.step_frame(state, 1 / 60)
-    return model, solver, state, sphere
+    return model, solver, state, fv, fo
+
+
+def _sphere_gap(points):
+    return np.linalg.norm(points, axis=1) - SPHERE_R
 
 
 def test_sphere_drape_small():
-    model, solver, state, sphere = _drape(20, 120)
+    from vfit_engine.drape.metrics import surface_samples
+    from vfit_engine.io.mesh import MeshData
+
+    model, solver, state, fv, fo = _sphere_drape(20, 120)
     assert np.all(np.isfinite(state.pos))
-    assert sphere.signed_distance(state.pos).min() >= 0.0
+    skin = solver.contact.skin
+    assert _sphere_gap(state.pos).min() >= skin * (1 - 1e-6)  # the vertices keep their clearance
+    tris = MeshData(state.pos, fo, fv).triangles()
+    # and the whole surface between them is out too (5 cm triangles on a 30 cm sphere would sag
+    # ~1 mm into it between vertices held out alone)
+    assert _sphere_gap(surface_samples(state.pos, tris, 8)).min() >= 0.0
     assert solver.max_stretch(state) <= 0.10
     assert state.pos[:, 1].min() < -0.1  # it draped over, not stuck on top
     assert solver.max_speed(state) < 0.5
 
 
-def test_determinism_and_python_collider_path():
-    _, _, a, _ = _drape(12, 20)
-    _, _, b, _ = _drape(12, 20)
+def test_sphere_drape_is_deterministic_and_colliders_project():
+    a = _sphere_drape(12, 20)[2]
+    b = _sphere_drape(12, 20)[2]
     assert a.pos.tobytes() == b.pos.tobytes() and a.pos_prev.tobytes() == b.pos_prev.tobytes()
-    _, _, c, _ = _drape(12, 20, wrap=True)  # same order of operations through project()
-    assert a.pos.tobytes() == c.pos.tobytes()
+    # the same drape through a collider's project() after every substep: deterministic, outside its skin
+    c = _sphere_drape(12, 20, project=True)[2]
+    d = _sphere_drape(12, 20, project=True)[2]
+    assert c.pos.tobytes() == d.pos.tobytes()
+    assert _sphere_gap(c.pos).min() >= 0.01 * SPHERE_R * (1 - 1e-9) and c.pos[:, 1].min() < 0.2
+    assert not np.allclose(c.pos, a.pos, atol=1e-3)  # a different contact model: not the same result
 
 
 def test_bad_inputs():
@@ -250,26 +275,141 @@ def test_bad_inputs():
         Model.from_polygons(fv, fo, bad, "cotton")
     with pytest.raises(InputError):
         SphereCollider([[0, 0, 0]], [-1.0])
+    model = Model.from_polygons(fv, fo, pos, "cotton")
+    with pytest.raises(ValueError, match="spheres"):
+        SolverVerlet(model, spheres=np.zeros((2, 3)))
+    for bad_settings in (dict(substeps=0), dict(gravity=(0.0, np.nan, 0.0)), dict(compression=1.0),
+                         dict(shear_limit_deg=90.0), dict(slack=-0.1), dict(air_damping=-1.0)):
+        with pytest.raises(ValueError):
+            VerletSettings(**bad_settings)
+    solver = SolverVerlet(model)
+    state = solver.init_state(0.01)
+    with pytest.raises(ValueError, match="dt"):
+        solver.step(state, 0.0)
+    with pytest.raises(ValueError):
+        solver.init_state(0.01, pos=np.zeros((4, 3)))
 
 
-# -- body-mesh contacts solved inside the strain-limit iterations (drape_step) ----------
+# -- shear: corner-angle limits and the shear springs that restore the angles ---------------------
 
-class _Contacts:
-    """A fused mesh-contact collider (the interface SolverVerlet looks for)."""
-
-    def __init__(self, mesh, max_push=1.0, reach=0.002, damping=0.0):
-        self.mesh, self.max_push, self.reach, self.damping = mesh, max_push, reach, damping
-
-    def contact_args(self):
-        m = self.mesh
-        return m.grid, m.skin, self.reach, m.friction, self.max_push, self.damping
+QUAD_SIDE = 0.05
 
 
-def _box_body(skin=0.002, friction=0.5):
+def _sheared_quad(deg):
+    """A flat square quad of side 5 cm sheared by ``deg`` degrees (side lengths kept)."""
+    s, c = np.sin(np.radians(deg)), np.cos(np.radians(deg))
+    a = QUAD_SIDE
+    return np.array([[0.0, 0.0, 0.0], [a, 0.0, 0.0], [a + a * s, 0.0, a * c], [a * s, 0.0, a * c]])
+
+
+def _quad_solver():
+    fv, fo = np.array([0, 1, 2, 3]), np.array([0, 4])
+    model = Model.from_polygons(fv, fo, _sheared_quad(0.0), "cotton")
+    return model, SolverVerlet(model, VerletSettings(gravity=(0.0, 0.0, 0.0))), fv, fo
+
+
+def _shear_deg(pos, fv, fo):
+    from vfit_engine.drape.metrics import corner_angles
+
+    return float(np.max(np.abs(np.degrees(corner_angles(pos, fv, fo)) - 90.0)))
+
+
+def test_sheared_quad_returns_to_its_rest_angle():
+    """A free quad sheared by 8 degrees (inside the 10 degree shear limit) is pulled back to its
+    square by the compliant shear springs, at its own size (not by shrinking)."""
+    model, solver, fv, fo = _quad_solver()
+    state = solver.init_state(1 / 480, pos=_sheared_quad(8.0))
+    assert _shear_deg(state.pos, fv, fo) == pytest.approx(8.0)
+    for _ in range(30):
+        solver.step_frame(state, 1 / 60)
+    assert _shear_deg(state.pos, fv, fo) < 1.0
+    side = np.linalg.norm(state.pos - np.roll(state.pos, 1, axis=0), axis=1)
+    np.testing.assert_allclose(side, QUAD_SIDE, rtol=0.015)  # the stretch constraints' free band
+    assert solver.max_speed(state) < 0.01
+
+
+def test_quad_sheared_beyond_the_limit_is_brought_within_it_at_once():
+    model, solver, fv, fo = _quad_solver()
+    limit = solver.settings.shear_limit_deg
+    state = solver.init_state(1 / 480, pos=_sheared_quad(30.0))
+    solver.step(state, 1 / 480)  # one substep
+    assert _shear_deg(state.pos, fv, fo) <= limit + 0.5
+    for _ in range(10):
+        solver.step_frame(state, 1 / 60)
+        assert _shear_deg(state.pos, fv, fo) <= limit + 0.5
+    assert _shear_deg(state.pos, fv, fo) < 0.5 * limit
+    assert model.max_stretch(state.pos) <= solver.settings.slack + 1e-3
+
+
+# -- the sweep order and the bands round openings --------------------------------------------------
+
+def test_sweep_from_the_pins_passes_their_pull_down():
+    """Constraints swept outward from the pins carry a pull on the pins down the cloth within a
+    substep's few sweeps (Gauss-Seidel along the load path); swept from the far end, the pull
+    stays at the top and stretches it."""
+    pos, fv, fo = grid_polygons(4, 13, 0.15, 0.6)  # rows 5 cm apart along z
+    top = np.flatnonzero(pos[:, 2] == pos[:, 2].max())
+    bottom = np.flatnonzero(pos[:, 2] == pos[:, 2].min())
+    worst = []
+    for start in (top, bottom):
+        model = Model.from_polygons(fv, fo, pos, "cotton", pin_indices=top)
+        solver = SolverVerlet(model, VerletSettings(gravity=(0.0, 0.0, 0.0), iterations=3))
+        solver.sweep_from(start)
+        state = solver.init_state(1 / 480)
+        state.set_pin_target(pos[top] + [0.0, 0.0, 0.01])  # the pins pulled 1 cm away from the cloth
+        solver.step(state, 1 / 480)
+        worst.append(model.max_stretch(state.pos))
+    assert worst[0] < 0.8 * worst[1]
+
+
+def _strip(zone_strain=None, admit=False):
+    """A 4 x 20 cm strip pinned at both ends, the ends pulled 8 % apart (or, with ``admit``, the strip
+    started 8 % longer with the bands opened to that); returns the strain along it, lower / upper half."""
+    pos, fv, fo = grid_polygons(5, 21, 0.04, 0.2)
+    ends = np.flatnonzero(np.abs(pos[:, 2]) == pos[:, 2].max())
+    model = Model.from_polygons(fv, fo, pos, "cotton", pin_indices=ends)
+    solver = SolverVerlet(model, VerletSettings(gravity=(0.0, 0.0, 0.0), air_damping=5.0))
+    lower = np.flatnonzero(pos[:, 2] <= 1e-9)
+    longer = pos * [1.0, 1.0, 1.08]
+    if zone_strain is not None:
+        solver.allow_stretch(lower, zone_strain)
+    if admit:
+        solver.admit(longer, np.arange(len(pos)))
+    state = solver.init_state(1 / 480, pos=longer if admit else None)
+    state.set_pin_target(longer[model.pin_indices])
+    for _ in range(200):
+        solver.step_frame(state, 1 / 60)
+    assert solver.max_speed(state) < 1e-6
+    i, j = model.spring_indices.T
+    along = (model.spring_type == STRUCTURAL) & (pos[i, 0] == pos[j, 0])
+    strain = model.spring_strain(state.pos)
+    return (strain[along & (pos[i, 2] <= 1e-9) & (pos[j, 2] <= 1e-9)].mean(),
+            strain[along & (pos[i, 2] >= -1e-9) & (pos[j, 2] >= -1e-9)].mean())
+
+
+def test_allow_stretch_lets_the_zone_take_the_stretch():
+    """An opening the body forces wider may stretch as far as it must, and so may the cloth round
+    it; the rest of the cloth keeps its bands."""
+    lo, up = _strip()
+    assert 0.05 < lo < 0.11 and 0.05 < up < 0.11 and abs(lo - up) < 0.03  # shared between the halves
+    lo, up = _strip(zone_strain=0.12)
+    assert lo > 0.10 and up < 0.04  # the lower half, allowed 12 %, takes most of the 8 %
+
+
+def test_admit_keeps_a_start_the_body_forced_wider():
+    """Bands widened to admit a start 8 % longer: the strip stays as it started (nothing pulls it back
+    towards a size the pins do not let it have, nor stretches it further)."""
+    lo, up = _strip(admit=True)
+    assert lo == pytest.approx(0.08, abs=0.005) and up == pytest.approx(0.08, abs=0.005)
+
+
+# -- contacts with a body mesh, solved in the constraint loop (kernels/cloth.py) --------------------
+
+def _box_body():
     from vfit_engine.collide.body_mesh import MeshCollider
 
     box = trimesh.creation.box(extents=(0.4, 0.2, 0.4))  # top face at y = 0.1
-    return MeshCollider(box.vertices, box.faces, skin=skin, friction=friction)
+    return MeshCollider(box.vertices, box.faces)
 
 
 def _one_particle_model(y, x=0.0):
@@ -280,65 +420,132 @@ def _one_particle_model(y, x=0.0):
 
 def test_contact_particle_rests_on_the_surface_at_the_skin():
     body = _box_body()
-    model = _one_particle_model(0.1 + body.skin)
-    solver = SolverVerlet(model, VerletSettings(substeps=4, air_damping=0.0), [_Contacts(body)])
+    contact = ContactSettings(skin=0.002)
+    model = _one_particle_model(0.1 + contact.skin)
+    solver = SolverVerlet(model, VerletSettings(substeps=4, air_damping=0.0), contact, body=body)
     state = solver.init_state(1 / 240)
     for _ in range(60):
         solver.step_frame(state, 1 / 60)
     # gravity presses it in each substep, the contact puts it back: it stays at the skin, at rest
-    assert state.pos[0] == pytest.approx([0.0, 0.1 + body.skin, 0.0], abs=1e-12)
+    assert state.pos[0] == pytest.approx([0.0, 0.1 + contact.skin, 0.0], abs=1e-12)
     assert np.all(np.abs(state.pos[0] - state.pos_prev[0]) < 1e-12)
     assert solver.contact_queries > 0
 
 
 def test_contact_push_is_limited_and_adds_no_velocity():
     body = _box_body()
+    contact = ContactSettings(skin=0.002)
     model = _one_particle_model(0.1 - 0.005)  # 5 mm inside the top face
-    solver = SolverVerlet(model, VerletSettings(substeps=1, gravity=(0.0, 0.0, 0.0), air_damping=0.0),
-                          [_Contacts(body, max_push=0.001)])
+    solver = SolverVerlet(model, VerletSettings(substeps=1, gravity=(0.0, 0.0, 0.0), air_damping=0.0), contact,
+                          body=body)
+    solver.max_push = 0.001
     state = solver.init_state(0.001)
     ys = []
     for _ in range(10):
         solver.step(state, 0.001)
         ys.append(state.pos[0, 1])
+        assert np.all(np.abs(state.pos[0] - state.pos_prev[0]) < 1e-12)  # no velocity from the pushes
     # out by 1 mm per substep until at the skin, then still
-    expect = np.minimum(0.095 + 0.001 * np.arange(1, 11), 0.1 + body.skin)
-    assert np.allclose(ys, expect, atol=1e-12)
-    assert np.all(np.abs(state.pos[0] - state.pos_prev[0]) < 1e-12)
+    expect = np.minimum(0.095 + 0.001 * np.arange(1, 11), 0.1 + contact.skin)
+    np.testing.assert_allclose(ys, expect, atol=1e-12)
 
 
 def test_contact_friction_slows_a_sliding_particle():
     # a particle sliding along the top face: Coulomb friction takes mu * g * dt off its speed per step
+    body = _box_body()
     for mu, moving in ((0.0, True), (0.5, False)):
-        body = _box_body(friction=mu)
-        model = _one_particle_model(0.1 + body.skin, x=-0.1)
-        solver = SolverVerlet(model, VerletSettings(substeps=10, air_damping=0.0), [_Contacts(body)])
+        contact = ContactSettings(skin=0.002, friction=mu)
+        model = _one_particle_model(0.1 + contact.skin, x=-0.1)
+        solver = SolverVerlet(model, VerletSettings(substeps=10, air_damping=0.0), contact, body=body)
         state = solver.init_state(1 / 600, vel=[0.5, 0.0, 0.0])
         for _ in range(12):  # 0.2 s: mu g t = 0.98 m/s > 0.5 m/s
             solver.step_frame(state, 1 / 60)
         speed = np.linalg.norm(state.pos[0] - state.pos_prev[0]) * 600
         assert (speed > 0.49) == moving
-        assert state.pos[0, 1] == pytest.approx(0.1 + body.skin, abs=1e-12)
+        assert state.pos[0, 1] == pytest.approx(0.1 + contact.skin, abs=1e-12)
 
 
-def test_sheet_on_sphere_jointly_limited_and_outside():
+def _icosphere_body(radius=0.1, subdivisions=4):
     from vfit_engine.collide.body_mesh import MeshCollider
 
-    sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.1)
-    body = MeshCollider(sphere.vertices, sphere.faces, skin=0.002, friction=0.3)
+    sphere = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    return MeshCollider(sphere.vertices, sphere.faces)
+
+
+def test_sheet_on_sphere_limited_and_outside():
+    from vfit_engine.drape.metrics import surface_penetration
+    from vfit_engine.io.mesh import MeshData
+
+    body = _icosphere_body()
     pos, fv, fo = grid_polygons(16, 16, 0.3, 0.3)
-    pos = np.ascontiguousarray(pos[:, [0, 2, 1]] - [0.15, -0.105, 0.15])  # horizontal, 5 mm above the top
+    pos = np.ascontiguousarray(pos + [0.0, 0.105, 0.0])  # horizontal, 5 mm above the top
     model = Model.from_polygons(fv, fo, pos, "cotton")
-    st = VerletSettings(substeps=8, air_damping=1.0, strain_limit=0.02, bend_strain_limit=0.02,
-                        strain_limit_iterations=10, strain_limit_relaxation=1.5)
-    solver = SolverVerlet(model, st, [_Contacts(body, max_push=0.005)])
+    contact = ContactSettings()
+    solver = SolverVerlet(model, VerletSettings(substeps=8, air_damping=1.0), contact, body=body,
+                          points=contact_points(fv, fo, pos, spacing=0.015))
     state = solver.init_state(1 / 480)
     for _ in range(60):
         solver.step_frame(state, 1 / 60)
     d, _, _, _ = body.query(state.pos, max_out=1.0, max_in=1.0)
-    assert np.all(np.isfinite(state.pos)) and d.min() > 0.002 * (1 - 1e-6) - 1e-9
+    assert np.all(np.isfinite(state.pos)) and d.min() > 0.9 * contact.skin
+    surface = surface_penetration(body, state.pos, MeshData(state.pos, fo, fv).triangles())
+    assert surface["surface_inside_percent"] == 0.0
     assert model.max_stretch(state.pos) < 0.05
     assert state.pos[:, 1].min() < 0.0  # it draped over the sphere rather than staying flat
+
+
+def test_triangle_over_a_bump_is_pushed_out_by_its_surface_points():
+    """A large cloth triangle whose corners are outside the body but whose middle the body pokes
+    through: its surface contact points push the whole triangle out; held out at its vertices only,
+    it stays cut by the body (what a vertex-only collider misses)."""
+    from vfit_engine.drape.metrics import surface_penetration
+
+    body = _icosphere_body(subdivisions=3)
+    ang = np.radians([90.0, 210.0, 330.0])
+    pos = np.stack([0.08 * np.cos(ang), np.full(3, 0.095), 0.08 * np.sin(ang)], axis=1)  # 5 mm below the top
+    fv, fo = np.array([0, 2, 1]), np.array([0, 3])
+    tris = fv.reshape(1, 3)
+    d, _, _, _ = body.query(pos, max_out=1.0, max_in=1.0)
+    assert d.min() > 0.02  # the corners are 2.4 cm out
+    before = surface_penetration(body, pos, tris)
+    assert before["surface_max_depth_mm"] > 4.0 and before["surface_inside_percent"] > 20.0
+    after = {}
+    for surface in (True, False):
+        model = Model.from_polygons(fv, fo, pos, "cotton")
+        points = contact_points(fv, fo, pos, spacing=0.015, surface=surface)
+        solver = SolverVerlet(model, VerletSettings(gravity=(0.0, 0.0, 0.0)), body=body, points=points)
+        state = solver.init_state(1 / 480)
+        for _ in range(10):
+            solver.step_frame(state, 1 / 60)
+        after[surface] = surface_penetration(body, state.pos, tris)
+        assert np.all(np.isfinite(state.pos)) and model.max_stretch(state.pos) <= solver.settings.slack + 1e-6
+    assert after[True]["surface_inside_percent"] == 0.0 and after[True]["surface_max_depth_mm"] == 0.0
+    assert after[False] == before  # its vertices never touched the body: nothing moved it
+
+
+def test_contact_points_of_a_square():
+    """A 10 cm square at 1.5 cm spacing: its 4 corners; 6 points inside each side and 9 on the fan's
+    diagonal (ceil(L / spacing) - 1); the 36 interior lattice points of each of its two triangles
+    (order ceil(14.1 / 1.5) = 10: 9 x 8 / 2); the midpoint of its other diagonal. Every point is a
+    convex combination of its triangle's corners."""
+    pos = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.1, 0.0, 0.1], [0.0, 0.0, 0.1]])
+    fv, fo = np.array([0, 1, 2, 3]), np.array([0, 4])
+    pts = contact_points(fv, fo, pos, spacing=0.015)
+    assert pts.vertex_count == 4 and pts.count == 4 + 4 * 6 + 9 + 2 * 36 + 1
+    np.testing.assert_array_equal(pts.verts[:4], np.repeat(np.arange(4)[:, None], 3, axis=1))
+    np.testing.assert_array_equal(pts.bary[:4], np.tile([1.0, 0.0, 0.0], (4, 1)))
+    np.testing.assert_allclose(pts.bary.sum(axis=1), 1.0, atol=1e-15)
+    assert np.all(pts.bary >= 0.0)
+    p = pts.positions(pos)
+    assert np.allclose(p[:, 1], 0.0) and p[:, [0, 2]].min() >= 0.0 and p[:, [0, 2]].max() <= 0.1 + 1e-15
+    # no point twice, but the centre: the midpoint of the fan's diagonal 0-2 and of the other, 1-3
+    # (the same place on a flat square, not on a bent quad)
+    assert np.unique(np.round(p, 12), axis=0).shape[0] == pts.count - 1
+    assert np.allclose(p[-1], [0.05, 0.0, 0.05]) and set(pts.verts[-1, :2]) == {1, 3}
+    # the points along a side are spacing apart at most
+    side = np.sort(p[(np.abs(p[:, 2]) < 1e-12), 0])
+    assert side.size == 8 and np.diff(side).max() <= 0.015
+    assert contact_points(fv, fo, pos, surface=False).count == 4
 
 
 # -- untangling --------------------------------------------------------------------------

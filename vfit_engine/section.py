@@ -34,10 +34,13 @@ def rotation_to_y(n):
     height of a point of the plane with :meth:`MeshSections.loops`.
     """
     y = np.array([0.0, 1.0, 0.0])
-    v = np.cross(n, y)
+    n = np.asarray(n, dtype=np.float64)
     c = float(np.dot(n, y))
-    if np.linalg.norm(v) < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    if c < 0.0:
+        # 1 / (1 + c) loses all precision as n nears -Y (inf or NaN within ~1e-8 of it): turn -n,
+        # which nears +Y, and then half a turn about X
+        return np.diag([1.0, -1.0, -1.0]) @ rotation_to_y(-n)
+    v = np.cross(n, y)
     vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
     return np.eye(3) + vx + vx @ vx / (1.0 + c)
 

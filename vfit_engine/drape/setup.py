@@ -160,9 +160,10 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     placed, placement = place_garment(garment.verts, reference, binding, name=garment.source.name)
     start, tinfo = transfer_garment(placed, reference.verts, body.verts, tris, transfer, binding)
     moved = not (tinfo["identity"] or tinfo["method"] == "none")
-    rest_pos = start if (rest == "graded" and moved) else garment.verts
+    graded = rest == "graded" and moved
+    rest_pos = start if graded else garment.verts
     collide = MeshCollider(body.surface, tris, skin=st.contact.skin, friction=st.contact.friction)
-    pins = _pins(garment, rest_pos, placed, start, body, reference, tris, pin, rest == "graded" and moved, st)
+    pins = _pins(garment, rest_pos, placed, start, body, reference, tris, pin, graded, st)
     rest_mesh = garment.mesh.with_verts(rest_pos)
     openings = check_openings(rest_mesh, body.surface, tris, skin=st.contact.skin, pos=start)
     start, zones = fit_openings(rest_mesh, start, openings, body.surface, tris, st.contact.skin, st.stretch_zone,
@@ -170,7 +171,7 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     spheres = project = None
     if collider != "mesh":
         spheres, project = fitted_collider(collider, model, body, collide, st)
-    info = dict(placement=placement, transfer=tinfo, rest="graded" if rest_pos is start else "garment",
+    info = dict(placement=placement, transfer=tinfo, rest="graded" if graded else "garment",
                 made_on=made_on(binding, reference, body), setup_time_s=time.perf_counter() - t0)
     return DrapeSetup(garment, np.ascontiguousarray(rest_pos), np.ascontiguousarray(start), body, reference, tris,
                       mat, pins, openings, zones, collide, collider, spheres, project, info)

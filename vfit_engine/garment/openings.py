@@ -136,6 +136,11 @@ def zone_distance(mesh, loop, width):
     return dist, np.where(np.isfinite(dist), source, -1).astype(np.int64)
 
 
+#: Shifts (m) of the plane along the arm (or leg ...) within which a tight opening is put where the body
+#: part is thinnest.
+FIT_OFFSETS = (-0.01, 0.0, 0.01)
+
+
 def fit_openings(mesh, start, openings, body_verts, body_tris, skin, width, pinned=()):
     """Openings the body forces wider start fitted round the body part, evenly.
 
@@ -165,8 +170,8 @@ def fit_openings(mesh, start, openings, body_verts, body_tris, skin, width, pinn
     -------
     start : (n, 3) float64, m
     zones : list of ((k,) int64, float)
-        The vertices within ``width`` of each opening that must stretch, and the strain it must
-        take at least.
+        The vertices within ``width`` of each opening that must stretch, and the strain it takes where
+        it was put (at least its ``required_strain``).
     """
     out = np.array(start, dtype=np.float64)
     loops = _BodyLoops(body_verts, body_tris)
@@ -178,17 +183,19 @@ def fit_openings(mesh, start, openings, body_verts, body_tris, skin, width, pinn
         loop = np.asarray(o["indices"], dtype=np.int64)
         dist, source = zone_distance(mesh, loop, width)
         zone = np.flatnonzero(np.isfinite(dist))
-        zones.append((zone, float(o["required_strain"])))
-        if pinned.intersection(loop.tolist()):
-            continue
-        tapes = loops.tapes(out[loop], (0.0,))
-        if not tapes:
-            continue
-        gaps = np.linalg.norm(mesh.verts[np.roll(loop, -1)] - mesh.verts[loop], axis=1)
-        move = np.zeros((mesh.n_verts, 3))
-        move[loop] = _on_tape(out[loop], tapes[0], gaps, skin) - out[loop]
-        fade = np.clip(1.0 - dist[zone] / width, 0.0, 1.0)
-        out[zone] += fade[:, None] * move[source[zone]]
+        strain = float(o["required_strain"])
+        tapes = [] if pinned.intersection(loop.tolist()) else loops.tapes(out[loop], FIT_OFFSETS)
+        if tapes:
+            # a tight band slides to where the body part is thinnest within reach of where it is
+            tapes = [min(tapes, key=lambda t: _perimeter(t[1]))]
+            gaps = np.linalg.norm(mesh.verts[np.roll(loop, -1)] - mesh.verts[loop], axis=1)
+            move = np.zeros((mesh.n_verts, 3))
+            move[loop] = _on_tape(out[loop], tapes[0], gaps, skin) - out[loop]
+            fade = np.clip(1.0 - dist[zone] / width, 0.0, 1.0)
+            out[zone] += fade[:, None] * move[source[zone]]
+            # where it is put the loop goes round a tape longer than the smallest within reach
+            strain = max(strain, (_perimeter(tapes[0][1]) + 2.0 * np.pi * skin) / np.sum(gaps) - 1.0)
+        zones.append((zone, strain))
     return out, zones
 
 

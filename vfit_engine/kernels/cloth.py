@@ -277,7 +277,7 @@ def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos
             at = c_alpha[c] * at_scale
             new = max(lc + c_relax[c] * (lo - length - at * lc) / (wsum + at), 0.0)
         else:
-            if first and (hi - length < ACTIVE_BAND * hi or length - lo < ACTIVE_BAND * hi):
+            if first and not c_once[c] and (hi - length < ACTIVE_BAND * hi or length - lo < ACTIVE_BAND * hi):
                 active[n] = c
                 n += 1
             continue
