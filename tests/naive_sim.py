@@ -173,18 +173,26 @@ def contact_point(x, v, b, p):
     return b[p, 0] * x[v[p, 0]] + b[p, 1] * x[v[p, 1]] + b[p, 2] * x[v[p, 2]]
 
 
-def push_points(x, w, v, b, planes, push=None):
+def push_points(x, w, v, b, planes, push=None, live=False, only=None):
     """Each contact point p onto its half-space n . p >= h, in order (copies).
 
     ``planes`` is a list of (p, n (3,), h). A point below by g > 0 moves its vertices by
     ``dx_k = w_k b_k g n / sum_j w_j b_j^2`` (PBD point-triangle constraint: the point itself moves by g).
-    ``push`` (n, 3) sums every vertex's moves. Returns (x, push).
+    ``push`` (n, 3) sums every vertex's moves. ``only``: the points to visit (None: all). Returns
+    (x, push), and with ``live`` also the points (in order, once each) that had a plane with gap
+    above -ACTIVE_GAP.
     """
+    from vfit_engine.kernels.cloth import ACTIVE_GAP
+
     x = x.copy()
     push = np.zeros_like(x) if push is None else push.copy()
+    gaps = {}
     for p, n, h in planes:
+        if only is not None and p not in only:
+            continue
         n = np.asarray(n, dtype=np.float64)
         gap = h - n @ contact_point(x, v, b, p)
+        gaps[p] = max(gaps.get(p, -np.inf), gap)
         if gap <= 0:
             continue
         den = sum(w[v[p, k]] * b[p, k] ** 2 for k in range(3))
@@ -194,6 +202,8 @@ def push_points(x, w, v, b, planes, push=None):
             dk = w[v[p, k]] * b[p, k] * gap / den
             x[v[p, k]] += dk * n
             push[v[p, k]] += dk * n
+    if live:
+        return x, push, [int(p) for p, g in gaps.items() if g > -ACTIVE_GAP]
     return x, push
 
 
@@ -256,8 +266,8 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     :func:`distance_sweep`; ``pins``: (idx, from, to) with the pins at ``alpha_pins`` of the way;
     ``pts``: (verts, bary, skin, spheres). Steps (the kernel's module docstring): explicit springs and
     gravity, Verlet with air damping; pins; contact half-spaces; ``iterations`` x {constraint sweep,
-    contacts} (the first and last sweeps visit every constraint, the others those the first found
-    active); the contact velocity. Returns (x, xp).
+    contacts} (the first and last sweeps visit every constraint and contact, the others those the
+    first found active or live); the contact velocity. Returns (x, xp).
     """
     w = cl["inv_mass"]
     idx = np.stack([cl["sp_i"], cl["sp_j"]], axis=1)
@@ -270,12 +280,15 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     planes = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push)
     lam = np.zeros(len(cl["i"]))
     push = np.zeros_like(x_new)
-    active = None
+    active = live = None
     for it in range(iterations):
         every = it == 0 or it == iterations - 1
         x_new, lam, found = distance_sweep(x_new, w, cl, lam, 1.0 / dt ** 2, None if every else active)
         if every:
             active = found
-        x_new, push = push_points(x_new, w, v, b, planes, push)
+        if it == 0:
+            x_new, push, live = push_points(x_new, w, v, b, planes, push, live=True)
+        else:
+            x_new, push = push_points(x_new, w, v, b, planes, push, only=None if every else set(live))
     xp_new = contact_velocity(x_new, xp_new, w, push, friction, 1.0 - c_contact)
     return x_new, xp_new

@@ -375,14 +375,19 @@ def test_solve_contacts_matches_reference():
         planes.append((q, normal[q], h[q]))
         if nq2[q] == nq2[q]:
             planes.append((q, n2[q], h2[q]))
-    ref_x, ref_push = naive_sim.push_points(x, w, v, b, planes)
+    ref_x, ref_push, ref_live = naive_sim.push_points(x, w, v, b, planes, live=True)
     got_x, push = x.copy(), np.zeros_like(x)
     c_list = np.zeros(p, np.int64)
     c_list[:listed.size] = listed
-    _solve_contacts(got_x, w, v, b, normal, h, c_list, listed.size, push, n2, nq2, h2)
+    c_live = np.full(p, -1, np.int64)
+    n_live = _solve_contacts(got_x, w, v, b, normal, h, c_list, listed.size, push, n2, nq2, h2, c_live, True)
     np.testing.assert_allclose(got_x, ref_x, rtol=1e-11, atol=1e-14)
     np.testing.assert_allclose(push, ref_push, rtol=1e-11, atol=1e-14)
     assert np.array_equal(got_x[w == 0], x[w == 0]) and np.count_nonzero(np.any(push != 0, axis=1)) > 10
+    # the live list: the points pushed or within ACTIVE_GAP of a plane, in order (some are not)
+    assert c_live[:n_live].tolist() == ref_live and 0 < n_live < listed.size
+    # a later sweep over the live points only lists nothing and returns its count
+    assert _solve_contacts(got_x, w, v, b, normal, h, c_live, n_live, push, n2, nq2, h2, c_list, False) == n_live
 
 
 def test_contact_point_is_pushed_exactly_onto_its_plane():
@@ -397,7 +402,7 @@ def test_contact_point_is_pushed_exactly_onto_its_plane():
     for w in (np.ones(3), np.array([0.0, 1.0, 1.0])):
         got, push = x.copy(), np.zeros((3, 3))
         _solve_contacts(got, w, v, b, up, np.array([0.01]), np.zeros(1, np.int64), 1, push, up, np.full(1, np.nan),
-                        np.zeros(1))
+                        np.zeros(1), np.zeros(1, np.int64), False)
         assert b[0] @ got[:, 1] == pytest.approx(0.01, abs=1e-16)
         np.testing.assert_allclose(got[:, 1], 0.01 * w * b[0] / np.sum(w * b[0] ** 2), atol=1e-16)
         assert np.array_equal(got[:, [0, 2]], x[:, [0, 2]]) and np.array_equal(push, got - x)
@@ -474,7 +479,7 @@ def _fresh_contact_state(p, n, c):
     return ContactState(p_last=np.zeros((p, 3)), d_last=np.full(p, -np.inf), c_n=np.zeros((p, 3)), c_nq=np.zeros(p),
                         c_h=np.zeros(p), c_list=np.zeros(p, np.int64), push=np.zeros((n, 3)), f=np.zeros((n, 3)),
                         lam=np.zeros(c), active=np.zeros(c, np.int64), c_n2=np.zeros((p, 3)), c_nq2=np.full(p, np.nan),
-                        c_h2=np.zeros(p))
+                        c_h2=np.zeros(p), c_live=np.zeros(p, np.int64))
 
 
 @pytest.mark.parametrize("iterations", [1, 4])

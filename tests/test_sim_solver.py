@@ -346,14 +346,15 @@ def test_quad_sheared_beyond_the_limit_is_brought_within_it_at_once():
 def test_sweep_from_the_pins_passes_their_pull_down():
     """Constraints swept outward from the pins carry a pull on the pins down the cloth within a
     substep's few sweeps (Gauss-Seidel along the load path); swept from the far end, the pull
-    stays at the top and stretches it."""
+    stays at the top and stretches it. (With the solver's default sweeps: with 3, the compliant bend
+    limits pass too little within one substep for the order to show.)"""
     pos, fv, fo = grid_polygons(4, 13, 0.15, 0.6)  # rows 5 cm apart along z
     top = np.flatnonzero(pos[:, 2] == pos[:, 2].max())
     bottom = np.flatnonzero(pos[:, 2] == pos[:, 2].min())
     worst = []
     for start in (top, bottom):
         model = Model.from_polygons(fv, fo, pos, "cotton", pin_indices=top)
-        solver = SolverVerlet(model, VerletSettings(gravity=(0.0, 0.0, 0.0), iterations=3))
+        solver = SolverVerlet(model, VerletSettings(gravity=(0.0, 0.0, 0.0)))
         solver.sweep_from(start)
         state = solver.init_state(1 / 480)
         state.set_pin_target(pos[top] + [0.0, 0.0, 0.01])  # the pins pulled 1 cm away from the cloth

@@ -12,7 +12,10 @@ the same Gauss-Seidel loop, as in position based dynamics, Mueller et al. 2007):
        body's closest point q and outward normal n, and the half-space
            n . p >= n . q + min(skin_p, d + max_push)        (d its signed distance now)
        (a point inside comes out by at most ``max_push`` per substep)
-    4. ``iterations`` x { every distance constraint (below); every contact half-space }
+    4. ``iterations`` x { every distance constraint (below); every contact half-space } -- the first
+       and last of them; the middle ones visit only the constraints near or beyond their bands' ends
+       (``ACTIVE_BAND``) and the contacts near or below their half-spaces (``ACTIVE_GAP``) after the
+       first: most cloth lies well inside its bands and clear of the body
     5. contact velocity: the pushes add no velocity; the approaching normal velocity of a pushed
        vertex is removed (inelastic), its tangential velocity shrinks by ``friction`` times the
        normal change (Coulomb, never reversing) and by the contact damping.
@@ -72,9 +75,9 @@ ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres
 #: of the signed distance at the last query; ``-inf`` forces one), c_n (P, 3) and c_nq (P,) m (the
 #: plane of the last query); scratch: c_h (P,) m, c_list (P,) int64, push (n, 3) m, f (n, 3) N,
 #: lam (C,) m kg, active (C,) int64; c_n2 (P, 3), c_nq2 (P,) m (a second plane in a crease, NaN: none)
-#: and c_h2 (P,) m.
+#: and c_h2 (P,) m; c_live (P,) int64 (the contacts a substep's middle sweeps solve).
 ContactState = namedtuple("ContactState", ["p_last", "d_last", "c_n", "c_nq", "c_h", "c_list", "push", "f", "lam",
-                                           "active", "c_n2", "c_nq2", "c_h2"])
+                                           "active", "c_n2", "c_nq2", "c_h2", "c_live"])
 
 #: Scalars of a substep: dt s, c_air (per step), iterations, reach m, friction, max_push m,
 #: c_contact (per step), reuse m, use_grid (query the body grid).
@@ -85,8 +88,12 @@ StepParams = namedtuple("StepParams", ["dt", "c_air", "iterations", "reach", "fr
 #: force) stays in that substep's later sweeps; the others are skipped (most cloth lies well inside
 #: its bands).
 ACTIVE_BAND = 0.003
-#: A new contact plane turned further than this (cosine) from the last one marks a crease.
-CREASE_COS = 0.5
+#: Likewise a contact point more than this (m) clear of its half-space(s) after the first sweep is
+#: left to the last one (surface points between resting vertices mostly are).
+ACTIVE_GAP = 0.0005
+#: A new contact plane turned further than this (cosine, ~8 degrees) from an earlier one, towards the
+#: point, marks a crease (:func:`_keep_crease`).
+CREASE_COS = 0.99
 SYMMETRIC = False
 
 
@@ -128,9 +135,9 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
 
     In a crease (under the bust, the armpit) a point lies near two surfaces and its closest point
     jumps from one to the other as it moves: a point whose new plane turned by more than
-    ``CREASE_COS`` from its last one, while still within reach of the last, keeps that one as a
-    second half-space (``c_n2``, ``c_nq2``; ``c_nq2`` NaN when none) and must satisfy both, instead of
-    being pushed to and fro between them."""
+    ``CREASE_COS`` from an earlier one, while still within reach of it, keeps that one as a second
+    half-space (``c_n2``, ``c_nq2``; ``c_nq2`` NaN when none; :func:`_keep_crease`) and must satisfy
+    both, instead of being pushed to and fro between them."""
     queries = 0
     n_c = 0
     for p in range(v.shape[0]):
@@ -174,19 +181,48 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
             d_last[p] = min(d, query_out)
             continue
         d_last[p] = d
-        c_nq2[p] = math.nan
-        if was_contact and nx * c_n[p, 0] + ny * c_n[p, 1] + nz * c_n[p, 2] < CREASE_COS:
-            d2 = c_n[p, 0] * px + c_n[p, 1] * py + c_n[p, 2] * pz - c_nq[p]
-            if d2 < band:
-                c_n2[p, 0], c_n2[p, 1], c_n2[p, 2] = c_n[p, 0], c_n[p, 1], c_n[p, 2]
-                c_nq2[p] = c_nq[p]
-                c_h2[p] = c_nq[p] + min(skin[p], d2 + max_push)
+        _keep_crease(p, px, py, pz, qx, qy, qz, nx, ny, nz, was_contact, band, skin[p], max_push, c_n, c_nq, c_n2, c_nq2, c_h2)
         c_n[p, 0], c_n[p, 1], c_n[p, 2] = nx, ny, nz
         c_nq[p] = nx * qx + ny * qy + nz * qz
         c_h[p] = c_nq[p] + min(skin[p], d + max_push)
         c_list[n_c] = p
         n_c += 1
     return n_c, queries
+
+
+@njit(inline="always")
+def _keep_crease(p, px, py, pz, qx, qy, qz, nx, ny, nz, was_contact, band, skin, max_push, c_n, c_nq, c_n2, c_nq2, c_h2):
+    """The second half-space of point ``p`` whose new plane through ``q`` is ``n`` (before ``c_n`` is
+    overwritten): of its previous planes (the first, and the second if any), the nearest one within
+    ``band`` that is turned from ``n`` by more than ``CREASE_COS`` and has ``q`` on its outer side;
+    else none (``c_nq2`` NaN).
+
+    ``q`` above an earlier tangent plane means the surface turned up towards the point: a crease,
+    where the earlier plane lies inside the body and both must hold. On a ridge ``q`` lies below it
+    and the earlier plane, outside the body, would hold the cloth off the skin: it is dropped. The
+    second plane is kept while it holds, not only on the query that turned, so a point in a crease
+    never alternates between one plane and two."""
+    best = band
+    bx = by = bz = bq = 0.0
+    if was_contact:
+        for k in range(2):
+            if k == 0:
+                mx, my, mz, mq = c_n[p, 0], c_n[p, 1], c_n[p, 2], c_nq[p]
+            else:
+                mx, my, mz, mq = c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_nq2[p]
+                if mq != mq:
+                    continue
+            if nx * mx + ny * my + nz * mz >= CREASE_COS or mx * qx + my * qy + mz * qz - mq <= 0.0:
+                continue  # the same plane, or a ridge (the new closest point below the old plane)
+            dm = mx * px + my * py + mz * pz - mq
+            if dm < best:
+                best, bx, by, bz, bq = dm, mx, my, mz, mq
+    if best < band:
+        c_n2[p, 0], c_n2[p, 1], c_n2[p, 2] = bx, by, bz
+        c_nq2[p] = bq
+        c_h2[p] = bq + min(skin, best + max_push)
+    else:
+        c_nq2[p] = math.nan
 
 
 @njit(inline="always")
@@ -298,27 +334,35 @@ def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos
 
 
 @njit
-def _solve_contacts(x, inv_mass, v, b, c_n, c_h, c_list, n_c, push, c_n2, c_nq2, c_h2):
-    """Project every contact point onto its half-space(s), spreading the move over its vertices."""
+def _solve_contacts(x, inv_mass, v, b, c_n, c_h, c_list, n_c, push, c_n2, c_nq2, c_h2, c_live, first):
+    """Project the contact points ``c_list[:n_c]`` onto their half-space(s), spreading each move over
+    its vertices. The ``first`` sweep lists in ``c_live`` the points that were below or within
+    ``ACTIVE_GAP`` of a half-space and returns their count (else returns ``n_c``)."""
+    n_live = 0
     for m in range(n_c):
         p = c_list[m]
-        _push_point(x, inv_mass, v, b, p, c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p], push)
+        gap = _push_point(x, inv_mass, v, b, p, c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p], push)
         if c_nq2[p] == c_nq2[p]:
-            _push_point(x, inv_mass, v, b, p, c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p], push)
+            gap = max(gap, _push_point(x, inv_mass, v, b, p, c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p], push))
+        if first and gap > -ACTIVE_GAP:
+            c_live[n_live] = p
+            n_live += 1
+    return n_live if first else n_c
 
 
 @njit(inline="always")
 def _push_point(x, inv_mass, v, b, p, nx, ny, nz, h, push):
-    """Move point ``p`` onto the half-space n . p >= h (if outside it), spread over its vertices."""
+    """Move point ``p`` onto the half-space n . p >= h (if outside it), spread over its vertices;
+    returns the gap h - n . p it had (m; > 0: it was pushed)."""
     px, py, pz = _point(x, v, b, p)
     gap = h - (nx * px + ny * py + nz * pz)
     if gap <= 0.0:
-        return
+        return gap
     den = 0.0
     for k in range(3):
         den += inv_mass[v[p, k]] * b[p, k] * b[p, k]
     if den <= 0.0:
-        return
+        return gap
     s = gap / den
     for k in range(3):
         ik = v[p, k]
@@ -331,6 +375,7 @@ def _push_point(x, inv_mass, v, b, p, nx, ny, nz, h, push):
         push[ik, 0] += dk * nx
         push[ik, 1] += dk * ny
         push[ik, 2] += dk * nz
+    return gap
 
 
 @njit
@@ -382,7 +427,7 @@ def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub
     v, b, skin, spheres = pts.pt_v, pts.pt_b, pts.pt_skin, pts.spheres
     p_last, d_last, c_n, c_nq, c_h, c_list = st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list
     push, f, lam, active = st.push, st.f, st.lam, st.active
-    c_n2, c_nq2, c_h2 = st.c_n2, st.c_nq2, st.c_h2
+    c_n2, c_nq2, c_h2, c_live = st.c_n2, st.c_nq2, st.c_h2, st.c_live
     dt = prm.dt
     inv_dt = 1.0 / dt
     dt2 = dt * dt
@@ -400,10 +445,16 @@ def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub
         lam[:] = 0.0
         push[:] = 0.0
         n_active = 0
+        n_live = n_c
         for it in range(prm.iterations):
+            full = it == 0 or it == prm.iterations - 1
             n_active = _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos_lo, c_cos_hi, c_once,
-                                        lam, at_scale, active, n_active,
-                                        it == 0 or it == prm.iterations - 1, SYMMETRIC and it % 2 == 1)
-            _solve_contacts(x, w, v, b, c_n, c_h, c_list, n_c, push, c_n2, c_nq2, c_h2)
+                                        lam, at_scale, active, n_active, full, SYMMETRIC and it % 2 == 1)
+            if full:
+                n = _solve_contacts(x, w, v, b, c_n, c_h, c_list, n_c, push, c_n2, c_nq2, c_h2, c_live, it == 0)
+                if it == 0:
+                    n_live = n
+            else:
+                _solve_contacts(x, w, v, b, c_n, c_h, c_live, n_live, push, c_n2, c_nq2, c_h2, c_live, False)
         _friction(x, xp, w, push, prm.friction, keep_t)
     return queries

@@ -67,8 +67,9 @@ class VerletSettings:
         at the scale of its mesh). Beyond the band the material's stretch stiffness acts.
     bend_limit : float or None
         Limit on the bend pairs (second neighbours): they may shorten freely (the cloth folds) but not
-        lengthen by more than this, so folds modelled into the garment -- a turned hem, a collar, a
-        lapel -- do not open out. None: bend springs only.
+        lengthen by more than this without resistance, so folds modelled into the garment -- a turned
+        hem, a collar, a lapel -- do not open out; beyond it they resist compliantly
+        (``BEND_LIMIT_SOFTNESS``). None: bend springs only.
     shear_limit_deg : float or None
         Polygon corner angles change by at most this (Provot's shear limit, as angle constraints on
         ``Model.corners``). None: no shear limit, and the shear springs act as explicit springs.
@@ -117,6 +118,12 @@ class VerletSettings:
 #: [RELAX_MIN, 1] (a few very stiff constraints must not make the rest converge slowly).
 RELAX_PERCENTILE = 90.0
 RELAX_MIN = 0.1
+#: Beyond its limit a bend pair resists as a yarn this many times softer than the fabric's stretch
+#: (compliant, not rigid): folds modelled into the garment still hold (nothing but the weak bending
+#: springs resists their opening otherwise), while where the body forces the cloth wider the pairs
+#: stretch with it instead of a rigid limit fighting the body's push (a top made tight over a bust
+#: jittered at the underbust and never settled).
+BEND_LIMIT_SOFTNESS = 10.0
 
 
 @dataclass(frozen=True)
@@ -243,6 +250,7 @@ class SolverVerlet:
             lo, hi, alpha = rest * (1.0 - st.compression), rest * (1.0 + st.slack), 1.0 / k
         elif kind == KIND_BEND:
             hi = rest * (1.0 + st.bend_limit)  # shortening (folding) is free, unfolding limited
+            alpha = BEND_LIMIT_SOFTNESS * rest / self._stretch_rigidity()
         else:  # a shear spring pulling its quad back to shape, weighted lightly where it conflicts
             # a band of width 0 (a spring both ways): with lo = 0 it could only pull its long diagonal
             # in, which the quad satisfies by shrinking inside the stretch's free compression band
@@ -256,6 +264,14 @@ class SolverVerlet:
         return dict(_c_i=m.spring_indices[springs, 0], _c_j=m.spring_indices[springs, 1],
                     _c_corner=np.full(n, -1, np.int64), _c_lo=lo, _c_hi=hi, _t_lo=np.zeros(n), _t_hi=np.zeros(n),
                     _c_alpha=alpha, _c_relax=relax, _c_kind=np.full(n, kind, np.int64), _c_rest=rest)
+
+    def _stretch_rigidity(self):
+        """The fabric's typical stretch rigidity k l (N): the median over its structural springs."""
+        from vfit_engine.garment.springs import STRUCTURAL
+
+        m = self.model
+        sel = (m.spring_type == STRUCTURAL) & (m.spring_k > 0)
+        return float(np.median(m.spring_k[sel] * m.spring_rest[sel])) if np.any(sel) else math.inf
 
     def _angle_constraints(self):
         """Constraint arrays of the polygon corners: each angle within shear_limit_deg of its rest."""
@@ -276,9 +292,8 @@ class SolverVerlet:
             self._grid = _empty_grid()
         elif hasattr(body, "grid"):
             self._grid = body.grid
-        else:  # TEMPORARY until MeshCollider.grid lands
-            from vfit_engine.kernels.collide_mesh import BodyGrid
-            self._grid = BodyGrid(*body._mesh_args)
+        else:
+            raise TypeError("body must be a MeshCollider (it has the grid the kernel queries)")
         self._spheres = np.zeros((0, 4)) if spheres is None else np.ascontiguousarray(spheres, dtype=np.float64)
         if self._spheres.ndim != 2 or self._spheres.shape[1] != 4:
             raise ValueError("spheres must have shape (S, 4): centre and radius")
@@ -289,6 +304,7 @@ class SolverVerlet:
         self._d_last = np.full(p, -np.inf)
         self._c_n, self._c_nq, self._c_h = np.zeros((p, 3)), np.zeros(p), np.zeros(p)
         self._c_list = np.zeros(p, dtype=np.int64)
+        self._c_live = np.zeros(p, dtype=np.int64)
         self._c_n2, self._c_nq2, self._c_h2 = np.zeros((p, 3)), np.full(p, np.nan), np.zeros(p)
         self._push = np.zeros((self.model.particle_count, 3))
 
@@ -463,7 +479,7 @@ class SolverVerlet:
                          self.body is not None)
         pts = ContactPoints(self.points.verts, self.points.bary, self._pt_skin, self._spheres)
         cst = ContactState(self._p_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_list, self._push,
-                           self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2)
+                           self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2, self._c_live)
         spans = [(0, n_sub)] if not self.colliders else [(s, s + 1) for s in range(n_sub)]
         for begin, end in spans:
             self.contact_queries += cloth_substeps(state.pos, state.pos_prev, self._cloth, *pins, pts, self._grid, prm,
