@@ -58,7 +58,7 @@ def morph_options(func):
 @click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--frames", type=click.IntRange(1, 100000), default=None,
-              help="Most frames to simulate (60 per simulated second) [default: 400].")
+              help="Most frames to simulate (60 per simulated second) [default: 600].")
 @click.option("--every", type=click.IntRange(0, 100000), default=10, show_default=True,
               help="Write frame_NNNN every K frames, frame_0000 being the start (0: none).")
 @click.option("--format", "fmt", type=click.Choice(["obj", "ply"]), default="obj", show_default=True,
@@ -237,6 +237,10 @@ def _summary(g, setup, result, report):
                f"max {100 * m['max_strain']:.2f} %; shear p99 {m['shear_p99_deg']:.1f} deg, "
                f"max {m['shear_max_deg']:.1f} deg" + ("  (graded to this body: --rest graded)"
                                                       if setup.info["rest"] == "graded" else ""))
+    for t in m.get("too_tight", ()):
+        click.echo(f"  too tight at the {t['part']}: stretched up to {100 * t['max_strain']:.1f} % (p99 "
+                   f"{100 * t['p99_strain']:.1f} %), beyond the {100 * t['fabric_limit']:.0f} % "
+                   f"{setup.material.name} gives: it cannot be worn there")
     for o in report["tight_openings"]:
         x, y, z = (100 * c for c in o["centre_m"])
         click.echo(f"  tight: the opening of {o['vertices']} vertices at ({x:.1f}, {y:.1f}, {z:.1f}) cm is "

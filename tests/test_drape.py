@@ -119,6 +119,28 @@ def test_report_of_a_drape(skirt_run):
     assert report["settle"]["test"] and report["placement"]["placed"] == "file" and report["rest"] == "garment"
     assert report["units"]["strain"] == "fraction" and "as given" in report["strain_reference"]
     assert report["frames"] == res.frames and report["pins"]["count"] == setup.pins.indices.size
+    # where: the skirt lies over the pelvis and the thighs, nowhere beyond what cotton gives
+    parts = report["strain_by_body_part"]
+    assert "pelvis" in parts and "head" not in parts and report["too_tight"] == []
+    assert sum(p["edges"] for p in parts.values()) <= setup.garment.mesh.edges().shape[0]
+    assert max(p["max_strain"] for p in parts.values()) <= res.metrics["max_strain"] + 1e-12
+
+
+def test_strain_by_part_says_where_it_is_too_tight(skirt_run):
+    """The skirt's draped shape widened 15 % about its axis: every part under it is beyond cotton's 10 %."""
+    from vfit_engine.drape.metrics import strain_by_part, yarn_strain
+
+    setup, res = skirt_run
+    axis = res.pos.mean(axis=0)
+    wide = res.pos.copy()
+    wide[:, [0, 2]] = axis[[0, 2]] + 1.15 * (res.pos[:, [0, 2]] - axis[[0, 2]])
+    strain = yarn_strain(setup.garment.mesh, wide)["edge_strain"]
+    out = strain_by_part(setup, wide, strain)
+    tight = {t["part"]: t for t in out["too_tight"]}
+    assert "pelvis" in tight and tight["pelvis"]["max_strain"] > 0.12
+    assert all(t["max_strain"] > t["fabric_limit"] == setup.material.max_strain for t in tight.values())
+    assert [t["max_strain"] for t in out["too_tight"]] == sorted((t["max_strain"] for t in out["too_tight"]),
+                                                                 reverse=True)
 
 
 def test_drape_is_deterministic(female, demo_skirt, skirt_run):

@@ -14,6 +14,10 @@
   ones are seams and hem turns whose strain is noise), ``p99_strain`` over all edges.
 * **Shear** is the change of the polygons' corner angles against the garment as given
   (``shear_p99_deg``, ``shear_max_deg``).
+* **Where it is tight**: each edge belongs to the body part under its midpoint (within ``PART_REACH``;
+  the body's skin-weight parts); ``strain_by_body_part`` gives each part's edges, p99 and max strain,
+  and ``too_tight`` the parts where some edge is stretched beyond what the fabric gives
+  (``Material.max_strain``): the body forces more than the garment can take there -- it cannot be worn.
 """
 from __future__ import annotations
 
@@ -27,6 +31,8 @@ SURFACE_SPACING = 0.005
 SURFACE_MAX_ORDER = 20
 #: Edges shorter than this at rest (m) are left out of ``max_strain``.
 MIN_EDGE = 0.003
+#: An edge whose midpoint lies farther than this (m) from the body belongs to no body part.
+PART_REACH = 0.03
 
 
 def surface_samples(verts, tris, order):
@@ -127,7 +133,7 @@ def drape_metrics(setup, pos):
     dict
         ``finite``; surface figures (:func:`surface_penetration`); ``vertex_inside_count``,
         ``vertex_inside_percent``, ``vertex_max_depth_mm``; :func:`yarn_strain` (against the garment as
-        given; ``edge_strain`` dropped) and, for a graded garment, ``graded_max_strain`` /
+        given; ``edge_strain`` dropped), :func:`strain_by_part` and, for a graded garment, ``graded_max_strain`` /
         ``graded_p99_strain`` against the graded rest shape; :func:`shear`.
     """
     pos = np.asarray(pos, dtype=np.float64)
@@ -141,13 +147,52 @@ def drape_metrics(setup, pos):
     out.update(vertex_inside_count=pen["inside_count"], vertex_inside_percent=100.0 * pen["inside_count"] / n,
                vertex_max_depth_mm=1000.0 * pen["max_depth_m"])
     strain = yarn_strain(mesh, pos)
-    strain.pop("edge_strain")
+    out.update(strain_by_part(setup, pos, strain.pop("edge_strain")))
     out.update(strain)
     if setup.info.get("rest") == "graded":
         graded = yarn_strain(setup.rest_mesh, pos)
         out.update(graded_max_strain=graded["max_strain"], graded_p99_strain=graded["p99_strain"])
     out.update(shear(mesh, pos))
     return out
+
+
+def strain_by_part(setup, pos, edge_strain):
+    """``strain_by_body_part`` and ``too_tight`` (module docstring; empty without ``setup.body_parts``).
+
+    Parameters
+    ----------
+    setup : DrapeSetup
+    pos : (n, 3) float64, m
+    edge_strain : (E,) float64
+        :func:`yarn_strain`'s per edge of ``setup.garment.mesh.edges()``.
+    """
+    from vfit_engine.body.segment import PARTS
+
+    if setup.body_parts is None:
+        return {}
+    mesh = setup.garment.mesh
+    edges = mesh.edges()
+    l0 = np.linalg.norm(mesh.verts[edges[:, 1]] - mesh.verts[edges[:, 0]], axis=1)
+    mid = 0.5 * (pos[edges[:, 0]] + pos[edges[:, 1]])
+    _, _, _, tri = setup.collider.query(mid, max_out=PART_REACH, max_in=np.inf)
+    part = np.full(edges.shape[0], -1, dtype=np.int64)
+    near = tri >= 0
+    part[near] = setup.body_parts[setup.body_tris[tri[near], 0]]
+    limit = float(setup.material.max_strain)
+    rows, tight = {}, []
+    for k, name in enumerate(PARTS):
+        sel = (part == k) & (l0 > 0)
+        if not sel.any():
+            continue
+        s = edge_strain[sel]
+        long_ = l0[sel] >= MIN_EDGE
+        top = float(s[long_].max()) if long_.any() else 0.0
+        rows[name] = dict(edges=int(sel.sum()), p99_strain=float(np.percentile(s, 99)), max_strain=top)
+        if top > limit:
+            tight.append(dict(part=name, max_strain=top, p99_strain=rows[name]["p99_strain"],
+                              over_fabric_limit_percent=100.0 * float(np.mean(s > limit)), fabric_limit=limit))
+    tight.sort(key=lambda r: -r["max_strain"])
+    return dict(strain_by_body_part=rows, too_tight=tight)
 
 
 def vertex_strain(mesh, pos):

@@ -26,7 +26,8 @@ class DrapeSettings:
     fps : float, 1/s
         Frames per simulated second (a frame is the unit of output and of the settle test).
     max_frames : int
-        Frames simulated at most; not settled by then means not converged (exit 3).
+        Frames simulated at most (10 s: cloth the body stretches far beyond what the fabric gives comes
+        to rest slowly, in 4-5 s); not settled by then means not converged (exit 3).
     solver : VerletSettings
         Substeps, iterations, damping and the cloth's constraint bands
         (:class:`vfit_engine.sim.solver_verlet.VerletSettings`).
@@ -64,7 +65,7 @@ class DrapeSettings:
     """
 
     fps: float = 60.0
-    max_frames: int = 400
+    max_frames: int = 600
     solver: VerletSettings = field(default_factory=_solver)
     contact: ContactSettings = field(default_factory=_contact)
     surface_spacing: float = 0.015

@@ -80,6 +80,9 @@ class DrapeSetup:
     info : dict
         ``placement``, ``transfer``, ``rest``, ``made_on`` (the body size the garment was made for),
         ``setup_time_s``.
+    body_parts : (V,) int64 or None
+        The body part (index into :data:`vfit_engine.body.segment.PARTS`, -1 none) of every body
+        surface vertex, to say where the cloth is tight.
     """
 
     garment: object
@@ -97,6 +100,7 @@ class DrapeSetup:
     spheres: np.ndarray | None = None
     project: object = None
     info: dict = field(default_factory=dict)
+    body_parts: np.ndarray | None = None
 
     @property
     def rest_mesh(self):
@@ -137,6 +141,7 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     DrapeSetup
     """
     from vfit_engine.body.resolve import default_body
+    from vfit_engine.body.segment import skin_parts
     from vfit_engine.collide.body_mesh import MeshCollider
     from vfit_engine.drape.colliders import COLLIDERS, fitted_collider
     from vfit_engine.drape.settings import DrapeSettings
@@ -174,7 +179,7 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     info = dict(placement=placement, transfer=tinfo, rest="graded" if graded else "garment",
                 made_on=made_on(binding, reference, body), setup_time_s=time.perf_counter() - t0)
     return DrapeSetup(garment, np.ascontiguousarray(rest_pos), np.ascontiguousarray(start), body, reference, tris,
-                      mat, pins, openings, zones, collide, collider, spheres, project, info)
+                      mat, pins, openings, zones, collide, collider, spheres, project, info, skin_parts(model))
 
 
 def _pins(garment, rest_pos, placed, start, body, reference, tris, pin, graded, st):
