@@ -473,3 +473,21 @@ def test_surface_penetration_samples_the_whole_surface():
     assert 0.0 < got["surface_inside_percent"] < 50.0
     outside = surface_penetration(body, tri + [0.0, 0.01, 0.0], np.array([[0, 1, 2]]))
     assert outside["surface_inside_percent"] == 0.0 and outside["surface_max_depth_mm"] == 0.0
+
+
+def test_loose_garment_without_binding_is_accepted_where_it_is(body_model):
+    """A garment without a .mhclo that hangs loose (its nearest vertices 4-5 cm off the skin, as a tunic with
+    ease or a cape) is draped where it is; the same shape moved 40 cm forward is refused."""
+    from vfit_engine.body.resolve import default_body
+    from vfit_engine.garment.placement import place_garment
+    from vfit_engine.geometry import vertex_normals
+
+    ref = default_body(body_model, "female")
+    tris = body_model.body_tris
+    normals = vertex_normals(ref.surface, tris)
+    torso = np.flatnonzero((ref.surface[:, 1] > 0.0) & (ref.surface[:, 1] < 0.3))
+    loose = ref.surface[torso] + 0.045 * normals[torso]
+    placed, info = place_garment(loose, ref, None, name="tunic.obj")
+    assert info["placed"] == "file" and np.array_equal(placed, loose)
+    with pytest.raises(InputError, match="tunic.obj .* from the body"):
+        place_garment(loose + [0.0, 0.0, 0.4], ref, None, name="tunic.obj")

@@ -25,9 +25,10 @@ from vfit_engine.errors import InputError
 #: somewhere else (the MakeHuman suits deviate by 9-17 mm on vfit's average bodies).
 MAX_BINDING_GAP = 0.05
 #: A garment without a binding rests on the body: at least NEAR_SHARE of its vertices lie within
-#: MAX_BODY_GAP (m) of a body vertex (body vertices are ~1 cm apart).
-MAX_BODY_GAP = 0.03
-NEAR_SHARE = 0.10
+#: MAX_BODY_GAP (m) of a body vertex (body vertices are ~1 cm apart). Loose: a cape touches only at its
+#: shoulders, a tunic with 3.5 cm of ease nowhere closer (both were refused at 10 % within 3 cm).
+MAX_BODY_GAP = 0.06
+NEAR_SHARE = 0.02
 
 
 def place_garment(garment_verts, reference, binding=None, name="garment"):
