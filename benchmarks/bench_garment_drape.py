@@ -57,6 +57,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--garment", default="female_casualsuit01")
     ap.add_argument("--repeat", type=int, default=1, help="warm runs; the fastest is reported")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="threads of the cloth kernel (default: all cores; the result is the same for any count)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args(argv)
     if not GARMENTS.is_dir():
@@ -64,9 +66,11 @@ def main(argv=None):
         return 1
 
     t0 = time.perf_counter()
-    import numba  # noqa: F401
+    import numba
 
     t_import = time.perf_counter() - t0
+    if args.threads:
+        numba.set_num_threads(args.threads)
     from vfit_engine.body.model import BodyModel
     from vfit_engine.body.resolve import default_body
     from vfit_engine.collide.body_mesh import MeshCollider
@@ -112,7 +116,7 @@ def main(argv=None):
     queries = res.info.get("contact_queries", 0)
     collide_s = per_query * queries
     out = dict(
-        garment=args.garment, subdivided_vertices=sub.mesh.n_verts, springs_note="structural+shear+bend",
+        garment=args.garment, threads=numba.get_num_threads(), subdivided_vertices=sub.mesh.n_verts, springs_note="structural+shear+bend",
         numba_import_s=round(t_import, 3), collider_build_s=round(t_collider, 3), prepare_s=round(t_setup, 3),
         first_call_s=round(t_first, 3), warm_wall_s=round(res.wall_time, 3), warm_total_s=round(total, 3),
         setup_s=round(res.setup_time, 3), steps=res.steps, frames=res.frames, converged=res.converged,

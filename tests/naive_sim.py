@@ -259,7 +259,8 @@ def sphere_contacts(x, w, v, b, skin, spheres, reach, max_push):
     return planes
 
 
-def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, max_push, c_contact, alpha_pins):
+def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, max_push, c_contact, alpha_pins,
+                  segments=None):
     """One substep of the cloth kernel against sphere colliders, fresh contact memory (copies).
 
     ``cl``: dict with ``inv_mass gravity sp_i sp_j sp_rest sp_k sp_kd`` and the constraint arrays of
@@ -267,7 +268,9 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     ``pts``: (verts, bary, skin, spheres). Steps (the kernel's module docstring): explicit springs and
     gravity, Verlet with air damping; pins; contact half-spaces; ``iterations`` x {constraint sweep,
     contacts} (the first and last sweeps visit every constraint and contact, the others those the
-    first found active or live); the contact velocity. Returns (x, xp).
+    first found active or live); the contact velocity. ``segments``: (c_seg, p_seg), each (4,): every
+    sweep visits segment 0's constraints then its contacts, then segment 1's, then segment 2's (the
+    kernel's "Two threads"); None: one segment. Returns (x, xp).
     """
     w = cl["inv_mass"]
     idx = np.stack([cl["sp_i"], cl["sp_j"]], axis=1)
@@ -278,17 +281,21 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     x_new[pin_idx] = pin_from + alpha_pins * (pin_to - pin_from)
     v, b, skin, spheres = pts
     planes = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push)
+    c_seg, p_seg = segments if segments is not None else ([0, len(cl["i"])] + [len(cl["i"])] * 2, [0, len(v)] + [len(v)] * 2)
     lam = np.zeros(len(cl["i"]))
     push = np.zeros_like(x_new)
-    active = live = None
+    active, live = {}, {}
     for it in range(iterations):
         every = it == 0 or it == iterations - 1
-        x_new, lam, found = distance_sweep(x_new, w, cl, lam, 1.0 / dt ** 2, None if every else active)
-        if every:
-            active = found
-        if it == 0:
-            x_new, push, live = push_points(x_new, w, v, b, planes, push, live=True)
-        else:
-            x_new, push = push_points(x_new, w, v, b, planes, push, only=None if every else set(live))
+        for g in range(3):
+            visit = range(c_seg[g], c_seg[g + 1]) if every else active[g]
+            x_new, lam, found = distance_sweep(x_new, w, cl, lam, 1.0 / dt ** 2, visit)
+            if it == 0:
+                active[g] = found
+            mine = [pl for pl in planes if p_seg[g] <= pl[0] < p_seg[g + 1]]
+            if it == 0:
+                x_new, push, live[g] = push_points(x_new, w, v, b, mine, push, live=True)
+            else:
+                x_new, push = push_points(x_new, w, v, b, mine, push, only=None if every else set(live[g]))
     xp_new = contact_velocity(x_new, xp_new, w, push, friction, 1.0 - c_contact)
     return x_new, xp_new

@@ -184,7 +184,7 @@ def _kernel_sweep(x, w, c, lam, active, n_active, first):
     from vfit_engine.kernels.cloth import _solve_distances
 
     n = _solve_distances(x, w, c["i"], c["j"], c["lo"], c["hi"], c["alpha"], c["relax"], c["corner"], c["cos_lo"],
-                         c["cos_hi"], c["once"], lam, AT_SCALE, active, n_active, first, False)
+                         c["cos_hi"], c["once"], lam, AT_SCALE, active, 0, c["i"].size, n_active, first, False)
     return n
 
 
@@ -380,14 +380,14 @@ def test_solve_contacts_matches_reference():
     c_list = np.zeros(p, np.int64)
     c_list[:listed.size] = listed
     c_live = np.full(p, -1, np.int64)
-    n_live = _solve_contacts(got_x, w, v, b, normal, h, c_list, listed.size, push, n2, nq2, h2, c_live, True)
+    n_live = _solve_contacts(got_x, w, v, b, normal, h, c_list, 0, listed.size, push, n2, nq2, h2, c_live, True)
     np.testing.assert_allclose(got_x, ref_x, rtol=1e-11, atol=1e-14)
     np.testing.assert_allclose(push, ref_push, rtol=1e-11, atol=1e-14)
     assert np.array_equal(got_x[w == 0], x[w == 0]) and np.count_nonzero(np.any(push != 0, axis=1)) > 10
     # the live list: the points pushed or within ACTIVE_GAP of a plane, in order (some are not)
     assert c_live[:n_live].tolist() == ref_live and 0 < n_live < listed.size
     # a later sweep over the live points only lists nothing and returns its count
-    assert _solve_contacts(got_x, w, v, b, normal, h, c_live, n_live, push, n2, nq2, h2, c_list, False) == n_live
+    assert _solve_contacts(got_x, w, v, b, normal, h, c_live, 0, n_live, push, n2, nq2, h2, c_list, False) == n_live
 
 
 def test_contact_point_is_pushed_exactly_onto_its_plane():
@@ -401,7 +401,7 @@ def test_contact_point_is_pushed_exactly_onto_its_plane():
     up = np.array([[0.0, 1.0, 0.0]])
     for w in (np.ones(3), np.array([0.0, 1.0, 1.0])):
         got, push = x.copy(), np.zeros((3, 3))
-        _solve_contacts(got, w, v, b, up, np.array([0.01]), np.zeros(1, np.int64), 1, push, up, np.full(1, np.nan),
+        _solve_contacts(got, w, v, b, up, np.array([0.01]), np.zeros(1, np.int64), 0, 1, push, up, np.full(1, np.nan),
                         np.zeros(1), np.zeros(1, np.int64), False)
         assert b[0] @ got[:, 1] == pytest.approx(0.01, abs=1e-16)
         np.testing.assert_allclose(got[:, 1], 0.01 * w * b[0] / np.sum(w * b[0] ** 2), atol=1e-16)
@@ -452,7 +452,7 @@ def test_make_contacts_with_spheres_matches_reference():
     st = _fresh_contact_state(p, n, 0)
     count, queries = _make_contacts(x, w, v, b, skin, spheres, _tiny_grid(), False, reach, max_push, 0.0,
                                     st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2,
-                                    st.c_h2)
+                                    st.c_h2, 0, p)
     got = st.c_list[:count]
     assert got.tolist() == [q for q, _, _ in planes] and 10 < count < p - 10
     np.testing.assert_allclose(st.c_n[got], [nq for _, nq, _ in planes], rtol=1e-12, atol=1e-15)
@@ -479,16 +479,19 @@ def _fresh_contact_state(p, n, c):
     return ContactState(p_last=np.zeros((p, 3)), d_last=np.full(p, -np.inf), c_n=np.zeros((p, 3)), c_nq=np.zeros(p),
                         c_h=np.zeros(p), c_list=np.zeros(p, np.int64), push=np.zeros((n, 3)), f=np.zeros((n, 3)),
                         lam=np.zeros(c), active=np.zeros(c, np.int64), c_n2=np.zeros((p, 3)), c_nq2=np.full(p, np.nan),
-                        c_h2=np.zeros(p), c_live=np.zeros(p, np.int64))
+                        c_h2=np.zeros(p), c_live=np.zeros(p, np.int64), counts=np.zeros((3, 4), np.int64))
 
 
-@pytest.mark.parametrize("iterations", [1, 4])
-def test_cloth_substep_matches_reference(iterations):
+@pytest.mark.parametrize("iterations, split", [(1, False), (4, False), (4, True)])
+def test_cloth_substep_matches_reference(iterations, split):
     """One whole substep (springs, Verlet, pins, contacts with spheres, constraint sweeps, contact
-    velocity) of a sheet lying over two spheres, against the reference built from the pieces."""
+    velocity) of a sheet lying over two spheres, against the reference built from the pieces; with
+    ``split`` the sheet's halves are the kernel's two threads' segments (the reference visits them in
+    order, as one thread would)."""
     from vfit_engine.garment.springs import grid_polygons
     from vfit_engine.kernels.cloth import ClothArrays, ContactPoints, StepParams, cloth_substeps
     from vfit_engine.sim.contact_points import contact_points
+    from vfit_engine.sim.partition import segment_of, segments
 
     rng = np.random.default_rng(21)
     pos, fv, fo = grid_polygons(6, 6, 0.16, 0.16)
@@ -504,30 +507,40 @@ def test_cloth_substep_matches_reference(iterations):
     sp = np.array([rng.choice(n, 2, replace=False) for _ in range(40)])
     sp_rest = np.linalg.norm(x[sp[:, 1]] - x[sp[:, 0]], axis=1) * rng.uniform(0.9, 1.1, 40)
     sp_k, sp_kd = rng.uniform(0.0, 5.0, 40), rng.uniform(0.0, 0.01, 40)
+    pts = contact_points(fv, fo, pos, spacing=0.015)
+    verts, bary = pts.verts, pts.bary
+    skin = np.where(np.arange(pts.count) < n, 0.002, 0.001)
+    half = (pos[:, 0] > np.median(pos[:, 0])).astype(np.int8) if split else np.zeros(n, np.int8)
+    sp_order, sp_seg = segments(segment_of(half, sp[:, 0], sp[:, 1]))
+    c_order, c_seg = segments(segment_of(half, c["i"], c["j"], c["corner"]))
+    p_order, p_seg = segments(segment_of(half, verts[:, 0], verts[:, 1], verts[:, 2]))
+    if split:
+        assert np.all(np.diff(c_seg) > 10) and np.all(np.diff(p_seg) > 10) and np.all(np.diff(sp_seg) > 5)
+    sp, sp_rest, sp_k, sp_kd = sp[sp_order], sp_rest[sp_order], sp_k[sp_order], sp_kd[sp_order]
+    c = {k: np.ascontiguousarray(a[c_order]) for k, a in c.items()}
+    verts, bary, skin = verts[p_order], bary[p_order], skin[p_order]
     gravity = np.array([0.0, -9.81, 0.0])
     cl = dict(inv_mass=w, gravity=gravity, sp_i=sp[:, 0].copy(), sp_j=sp[:, 1].copy(), sp_rest=sp_rest, sp_k=sp_k,
               sp_kd=sp_kd, **c)
-    pts = contact_points(fv, fo, pos, spacing=0.015)
-    skin = np.where(np.arange(pts.count) < n, 0.002, 0.001)
     spheres = np.array([[0.0, 0.0, 0.0, 0.1], [0.06, 0.0, 0.03, 0.095]])
     dt, c_air, reach, friction, max_push, c_contact = 1 / 480, 0.01, 0.002, 0.8, 0.001, 0.1
-    ref_x, ref_xp = naive_sim.cloth_substep(x, xp, cl, (pin_idx, pin_from, pin_to),
-                                            (pts.verts, pts.bary, skin, spheres), dt, c_air, iterations, reach,
-                                            friction, max_push, c_contact, alpha_pins=1.0)
+    ref_x, ref_xp = naive_sim.cloth_substep(x, xp, cl, (pin_idx, pin_from, pin_to), (verts, bary, skin, spheres), dt,
+                                            c_air, iterations, reach, friction, max_push, c_contact, alpha_pins=1.0,
+                                            segments=(c_seg, p_seg))
     arrays = ClothArrays(inv_mass=w, gravity=gravity, sp_i=cl["sp_i"], sp_j=cl["sp_j"], sp_rest=sp_rest, sp_k=sp_k,
                          sp_kd=sp_kd, c_i=c["i"], c_j=c["j"], c_lo=c["lo"], c_hi=c["hi"], c_alpha=c["alpha"],
                          c_relax=c["relax"], c_corner=c["corner"], c_cos_lo=c["cos_lo"], c_cos_hi=c["cos_hi"],
-                         c_once=c["once"])
+                         c_once=c["once"], sp_seg=sp_seg, c_seg=c_seg)
     prm = StepParams(dt=dt, c_air=c_air, iterations=iterations, reach=reach, friction=friction, max_push=max_push,
                      c_contact=c_contact, reuse=0.0, use_grid=False)
     st = _fresh_contact_state(pts.count, n, c["i"].size)
     got_x, got_xp = x.copy(), xp.copy()
     queries = cloth_substeps(got_x, got_xp, arrays, pin_idx, pin_from, pin_to,
-                             ContactPoints(pt_v=pts.verts, pt_b=pts.bary, pt_skin=skin, spheres=spheres), _tiny_grid(),
-                             prm, st, 0, 1, 1)
+                             ContactPoints(pt_v=verts, pt_b=bary, pt_skin=skin, spheres=spheres, p_seg=p_seg),
+                             _tiny_grid(), prm, st, 0, 1, 1)
     np.testing.assert_allclose(got_x, ref_x, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(got_xp, ref_xp, rtol=1e-9, atol=1e-12)
-    free = np.einsum("pk,pk->p", pts.bary, w[pts.verts] > 0) >= 0.5
+    free = np.einsum("pk,pk->p", bary, w[verts] > 0) >= 0.5
     assert queries == np.count_nonzero(free) > 0.9 * pts.count
     np.testing.assert_allclose(got_x[pin_idx], pin_to, atol=1e-15)
     # the case is not trivial: contacts pushed points out, by at most max_push from inside

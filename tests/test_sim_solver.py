@@ -263,6 +263,28 @@ def test_sphere_drape_is_deterministic_and_colliders_project():
     assert not np.allclose(c.pos, a.pos, atol=1e-3)  # a different contact model: not the same result
 
 
+def test_two_threads_give_the_one_thread_result():
+    """The kernel runs the cloth's halves on two threads: a 24 x 24 sheet (split: at least MIN_SPLIT
+    vertices) drapes to the same bits on one thread as on two, and its halves are numbered apart."""
+    import numba
+
+    from vfit_engine.sim.partition import MIN_SPLIT
+
+    assert 24 * 24 >= MIN_SPLIT
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        _, solver, one, _, _ = _sphere_drape(24, 15)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = _sphere_drape(24, 15)[2]
+    finally:
+        numba.set_num_threads(before)
+    assert one.pos.tobytes() == two.pos.tobytes() and one.pos_prev.tobytes() == two.pos_prev.tobytes()
+    first, second, across = solver.segment_sizes
+    assert min(first, second) > 0.45 * solver.constraint_count and across > 0  # two halves, a short cut
+    assert np.all(np.isfinite(one.pos)) and _sphere_gap(one.pos).min() > 0
+
+
 def test_bad_inputs():
     pos, fv, fo = grid_polygons(3, 3)
     with pytest.raises(InputError):

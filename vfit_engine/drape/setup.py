@@ -21,6 +21,8 @@
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import time
 from dataclasses import dataclass, field
 
@@ -145,7 +147,7 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     from vfit_engine.collide.body_mesh import MeshCollider
     from vfit_engine.drape.colliders import COLLIDERS, fitted_collider
     from vfit_engine.drape.settings import DrapeSettings
-    from vfit_engine.garment.openings import check_openings, fit_openings
+    from vfit_engine.garment.openings import BodyLoops, check_openings, fit_openings
     from vfit_engine.garment.placement import made_on, place_garment
     from vfit_engine.garment.transfer import transfer_garment
     from vfit_engine.sim.materials import resolve_material
@@ -162,17 +164,22 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
         gender = garment_gender(garment) or (body.gender if isinstance(body.gender, str) else None) or "female"
         reference = default_body(model, gender)
     tris = model.body_tris
-    placed, placement = place_garment(garment.verts, reference, binding, name=garment.source.name)
-    start, tinfo = transfer_garment(placed, reference.verts, body.verts, tris, transfer, binding)
-    moved = not (tinfo["identity"] or tinfo["method"] == "none")
-    graded = rest == "graded" and moved
-    rest_pos = start if graded else garment.verts
-    collide = MeshCollider(body.surface, tris, skin=st.contact.skin, friction=st.contact.friction)
-    pins = _pins(garment, rest_pos, placed, start, body, reference, tris, pin, graded, st)
-    rest_mesh = garment.mesh.with_verts(rest_pos)
-    openings = check_openings(rest_mesh, body.surface, tris, skin=st.contact.skin, pos=start)
-    start, zones = fit_openings(rest_mesh, start, openings, body.surface, tris, st.contact.skin, st.stretch_zone,
-                                pins.indices)
+    with ThreadPoolExecutor(1) as pool:
+        # the collider's build runs in Numba kernels that release the GIL: it overlaps the placement,
+        # pins and openings, which do not need it
+        building = pool.submit(MeshCollider, body.surface, tris, skin=st.contact.skin, friction=st.contact.friction)
+        placed, placement = place_garment(garment.verts, reference, binding, name=garment.source.name)
+        start, tinfo = transfer_garment(placed, reference.verts, body.verts, tris, transfer, binding)
+        moved = not (tinfo["identity"] or tinfo["method"] == "none")
+        graded = rest == "graded" and moved
+        rest_pos = start if graded else garment.verts
+        pins = _pins(garment, rest_pos, placed, start, body, reference, tris, pin, graded, st)
+        rest_mesh = garment.mesh.with_verts(rest_pos)
+        loops = BodyLoops(body.surface, tris)
+        openings = check_openings(rest_mesh, body.surface, tris, skin=st.contact.skin, pos=start, loops=loops)
+        start, zones = fit_openings(rest_mesh, start, openings, body.surface, tris, st.contact.skin,
+                                    st.stretch_zone, pins.indices, loops=loops)
+        collide = building.result()
     spheres = project = None
     if collider != "mesh":
         spheres, project = fitted_collider(collider, model, body, collide, st)

@@ -43,6 +43,15 @@ last query found ``d_last`` (at ``p_last``) is still at least ``d_last - |p - p_
 body. A point in contact that moved less than ``reuse`` since its last query keeps that query's
 tangent plane (cloth resting on the skin barely moves, and the exact query is most of the cost).
 
+Two threads: the caller numbers the cloth's vertices in two halves and orders every spring,
+constraint and contact point by segment -- 0: all its vertices in the first half, 1: all in the
+second, 2: across -- with the bounds in ``sp_seg``, ``c_seg``, ``p_seg`` (``seg[g] .. seg[g + 1] - 1``).
+Segments 0 and 1 share no vertex, so each pass (spring forces, contact generation, each sweep of
+constraints then contacts) runs them on two threads and segment 2 after them: the result is that of
+one thread visiting the segments in order, whatever the number of threads. Each segment keeps its
+active constraints and its contacts in its own part of ``active``, ``c_list`` and ``c_live`` (from its
+first index), and its counts in ``counts``.
+
 The helpers take plain arrays: the entry kernel unpacks the argument tuples once, since Numba
 re-reads (and reference-counts) a tuple's arrays at every use inside a called function.
 Numba's cache watches only this file: after editing a helper it inlines from another module
@@ -51,33 +60,35 @@ Numba's cache watches only this file: after editing a helper it inlines from ano
 import math
 from collections import namedtuple
 
-from vfit_engine._jit import njit
+from vfit_engine._jit import njit, prange
 from vfit_engine.kernels.collide_mesh import _query_point
 from vfit_engine.kernels.integrate import _advance_in_place, _move_pins
-from vfit_engine.kernels.springs import _spring_forces
+from vfit_engine.kernels.springs import _add_spring_forces
 
 #: The cloth as the kernel sees it (fixed during a drape): inv_mass (n,) 1/kg; gravity (3,) m/s^2;
 #: explicit springs sp_i, sp_j (s,) int64, sp_rest (s,) m, sp_k (s,) N/m, sp_kd (s,) N s/m;
 #: distance constraints in sweep order c_i, c_j (C,) int64, c_lo, c_hi (C,) m, c_alpha (C,) m/N,
 #: c_relax (C,); c_corner (C,) int64 (a shear limit's corner, else -1) and c_cos_lo, c_cos_hi (C,): the
 #: cosines of its corner's smallest and largest angle (an angle constraint instead of a distance); c_once
-#: (C,) bool: solved in the full sweeps only (weak restoring springs, never in the active set).
+#: (C,) bool: solved in the full sweeps only (weak restoring springs, never in the active set); sp_seg,
+#: c_seg (4,) int64: the springs' and constraints' segments (module docstring, "Two threads").
 ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", "sp_rest", "sp_k", "sp_kd",
                                          "c_i", "c_j", "c_lo", "c_hi", "c_alpha", "c_relax", "c_corner", "c_cos_lo",
-                                         "c_cos_hi", "c_once"])
+                                         "c_cos_hi", "c_once", "sp_seg", "c_seg"])
 
 #: Contact points: pt_v (P, 3) int64 vertices and pt_b (P, 3) float64 barycentric weights (cloth
 #: vertex i is (i, i, i) with (1, 0, 0)); pt_skin (P,) m, the clearance each keeps; spheres (S, 4)
-#: float64: sphere colliders (centre, radius), m.
-ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres"])
+#: float64: sphere colliders (centre, radius), m; p_seg (4,) int64: the points' segments.
+ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres", "p_seg"])
 
 #: Per-point contact memory (in/out): p_last (P, 3) m and d_last (P,) m (position and a lower bound
 #: of the signed distance at the last query; ``-inf`` forces one), c_n (P, 3) and c_nq (P,) m (the
 #: plane of the last query); scratch: c_h (P,) m, c_list (P,) int64, push (n, 3) m, f (n, 3) N,
 #: lam (C,) m kg, active (C,) int64; c_n2 (P, 3), c_nq2 (P,) m (a second plane in a crease, NaN: none)
-#: and c_h2 (P,) m; c_live (P,) int64 (the contacts a substep's middle sweeps solve).
+#: and c_h2 (P,) m; c_live (P,) int64 (the contacts a substep's middle sweeps solve); counts (3, 4) int64:
+#: per segment its contacts, live contacts, active constraints and queries.
 ContactState = namedtuple("ContactState", ["p_last", "d_last", "c_n", "c_nq", "c_h", "c_list", "push", "f", "lam",
-                                           "active", "c_n2", "c_nq2", "c_h2", "c_live"])
+                                           "active", "c_n2", "c_nq2", "c_h2", "c_live", "counts"])
 
 #: Scalars of a substep: dt s, c_air (per step), iterations, reach m, friction, max_push m,
 #: c_contact (per step), reuse m, use_grid (query the body grid).
@@ -130,8 +141,9 @@ def _sphere_query(px, py, pz, spheres):
 
 @njit
 def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_push, reuse,
-                   p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2):
-    """Contact half-spaces of the points that may touch the body (step 3); returns (contacts, queries).
+                   p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2, p0, p1):
+    """Contact half-spaces of the points ``p0 .. p1 - 1`` that may touch the body (step 3), listed in
+    ``c_list`` from index ``p0``; returns (contacts, queries).
 
     In a crease (under the bust, the armpit) a point lies near two surfaces and its closest point
     jumps from one to the other as it moves: a point whose new plane turned by more than
@@ -140,7 +152,7 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
     both, instead of being pushed to and fro between them."""
     queries = 0
     n_c = 0
-    for p in range(v.shape[0]):
+    for p in range(p0, p1):
         free = 0.0
         for k in range(3):
             if inv_mass[v[p, k]] > 0.0:
@@ -160,7 +172,7 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
             if c_nq2[p] == c_nq2[p]:
                 d2 = c_n2[p, 0] * px + c_n2[p, 1] * py + c_n2[p, 2] * pz - c_nq2[p]
                 c_h2[p] = c_nq2[p] + min(skin[p], d2 + max_push)
-            c_list[n_c] = p
+            c_list[p0 + n_c] = p
             n_c += 1
             continue
         was_contact = -math.inf < d_last[p] < band
@@ -185,7 +197,7 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
         c_n[p, 0], c_n[p, 1], c_n[p, 2] = nx, ny, nz
         c_nq[p] = nx * qx + ny * qy + nz * qz
         c_h[p] = c_nq[p] + min(skin[p], d + max_push)
-        c_list[n_c] = p
+        c_list[p0 + n_c] = p
         n_c += 1
     return n_c, queries
 
@@ -274,16 +286,18 @@ def _project_angle(x, w, i, j, k, cos_lo, cos_hi, relax):
 
 @njit
 def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos_lo, c_cos_hi, c_once, lam, at_scale,
-                     active, n_active, first, backward):
-    """One Gauss-Seidel sweep over the distance constraints (module docstring); returns the active count.
+                     active, c0, c1, n_active, first, backward):
+    """One Gauss-Seidel sweep over the constraints ``c0 .. c1 - 1`` (module docstring); returns the
+    active count.
 
-    The ``first`` sweep of a substep visits every constraint and lists in ``active`` those holding a
-    force or within ``ACTIVE_BAND`` of their band's ends afterwards; later sweeps visit only those.
+    The ``first`` sweep of a substep visits every one and lists in ``active`` (from index ``c0``) those
+    holding a force or within ``ACTIVE_BAND`` of their band's ends afterwards; later sweeps visit only
+    the ``n_active`` listed.
     """
-    n_c = ci.shape[0] if first else n_active
+    n_c = c1 - c0 if first else n_active
     n = 0
     for a0 in range(n_c):
-        a = n_c - 1 - a0 if backward else a0
+        a = c0 + (n_c - 1 - a0 if backward else a0)
         c = a if first else active[a]
         i = ci[c]
         j = cj[c]
@@ -299,7 +313,7 @@ def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos
         if k >= 0:
             moved = _project_angle(x, w, i, j, k, c_cos_lo[c], c_cos_hi[c], c_relax[c])
             if first and moved:
-                active[n] = c
+                active[c0 + n] = c
                 n += 1
             continue
         length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
@@ -314,11 +328,11 @@ def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos
             new = max(lc + c_relax[c] * (lo - length - at * lc) / (wsum + at), 0.0)
         else:
             if first and not c_once[c] and (hi - length < ACTIVE_BAND * hi or length - lo < ACTIVE_BAND * hi):
-                active[n] = c
+                active[c0 + n] = c
                 n += 1
             continue
         if first and not c_once[c]:
-            active[n] = c
+            active[c0 + n] = c
             n += 1
         if length <= 0.0:
             continue
@@ -334,18 +348,18 @@ def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos
 
 
 @njit
-def _solve_contacts(x, inv_mass, v, b, c_n, c_h, c_list, n_c, push, c_n2, c_nq2, c_h2, c_live, first):
-    """Project the contact points ``c_list[:n_c]`` onto their half-space(s), spreading each move over
-    its vertices. The ``first`` sweep lists in ``c_live`` the points that were below or within
-    ``ACTIVE_GAP`` of a half-space and returns their count (else returns ``n_c``)."""
+def _solve_contacts(x, inv_mass, v, b, c_n, c_h, c_list, start, n_c, push, c_n2, c_nq2, c_h2, c_live, first):
+    """Project the contact points ``c_list[start:start + n_c]`` onto their half-space(s), spreading each
+    move over its vertices. The ``first`` sweep lists in ``c_live`` (from ``start``) the points that were
+    below or within ``ACTIVE_GAP`` of a half-space and returns their count (else returns ``n_c``)."""
     n_live = 0
-    for m in range(n_c):
+    for m in range(start, start + n_c):
         p = c_list[m]
         gap = _push_point(x, inv_mass, v, b, p, c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p], push)
         if c_nq2[p] == c_nq2[p]:
             gap = max(gap, _push_point(x, inv_mass, v, b, p, c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p], push))
         if first and gap > -ACTIVE_GAP:
-            c_live[n_live] = p
+            c_live[start + n_live] = p
             n_live += 1
     return n_live if first else n_c
 
@@ -401,14 +415,14 @@ def _friction(x, xp, inv_mass, push, friction, keep_t):
         xp[i, 2] = x[i, 2] - (vn_new * nz + scale * tz)
 
 
-@njit
+@njit(parallel=True)
 def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub_begin, sub_end, sub_total):
     """Substeps ``sub_begin .. sub_end - 1`` of ``sub_total`` (module docstring); returns the queries made.
 
     Parameters
     ----------
     x, xp : (n, 3) float64, m
-        Positions now / one step ago (in place).
+        Positions now / one step ago (in place), numbered in two halves (module docstring).
     cl : ClothArrays
     pin_idx : (P,) int64;  pin_from, pin_to : (P, 3) float64, m
         Pinned particles move linearly from ``pin_from`` (start of substep 0) to ``pin_to`` (end of
@@ -421,40 +435,60 @@ def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub
         In/out (the contact memory) and scratch.
     """
     w, gravity = cl.inv_mass, cl.gravity
-    sp_i, sp_j, sp_rest, sp_k, sp_kd = cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd
-    ci, cj, c_lo, c_hi, c_alpha, c_relax = cl.c_i, cl.c_j, cl.c_lo, cl.c_hi, cl.c_alpha, cl.c_relax
-    c_corner, c_cos_lo, c_cos_hi, c_once = cl.c_corner, cl.c_cos_lo, cl.c_cos_hi, cl.c_once
-    v, b, skin, spheres = pts.pt_v, pts.pt_b, pts.pt_skin, pts.spheres
-    p_last, d_last, c_n, c_nq, c_h, c_list = st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list
-    push, f, lam, active = st.push, st.f, st.lam, st.active
-    c_n2, c_nq2, c_h2, c_live = st.c_n2, st.c_nq2, st.c_h2, st.c_live
     dt = prm.dt
-    inv_dt = 1.0 / dt
-    dt2 = dt * dt
-    at_scale = 1.0 / dt2
     keep = 1.0 - prm.c_air
-    keep_t = 1.0 - prm.c_contact
+    counts = st.counts
     queries = 0
     for s in range(sub_begin, sub_end):
-        _spring_forces(x, xp, inv_dt, sp_i, sp_j, sp_rest, sp_k, sp_kd, f)
-        _advance_in_place(x, xp, w, f, gravity, keep, dt2)
+        st.f[:] = 0.0
+        for g in prange(2):
+            _add_spring_forces(x, xp, 1.0 / dt, cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd, st.f, cl.sp_seg[g],
+                               cl.sp_seg[g + 1])
+        _add_spring_forces(x, xp, 1.0 / dt, cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd, st.f, cl.sp_seg[2],
+                           cl.sp_seg[3])
+        _advance_in_place(x, xp, w, st.f, gravity, keep, dt * dt)
         _move_pins(x, pin_idx, pin_from, pin_to, (s + 1.0) / sub_total)
-        n_c, q = _make_contacts(x, w, v, b, skin, spheres, grid, prm.use_grid, prm.reach, prm.max_push, prm.reuse,
-                                p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2)
-        queries += q
-        lam[:] = 0.0
-        push[:] = 0.0
-        n_active = 0
-        n_live = n_c
+        for g in prange(2):
+            _contacts_of_segment(x, w, pts, grid, prm, st, g)
+        _contacts_of_segment(x, w, pts, grid, prm, st, 2)
+        queries += counts[0, 3] + counts[1, 3] + counts[2, 3]
+        st.lam[:] = 0.0
+        st.push[:] = 0.0
         for it in range(prm.iterations):
-            full = it == 0 or it == prm.iterations - 1
-            n_active = _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos_lo, c_cos_hi, c_once,
-                                        lam, at_scale, active, n_active, full, SYMMETRIC and it % 2 == 1)
-            if full:
-                n = _solve_contacts(x, w, v, b, c_n, c_h, c_list, n_c, push, c_n2, c_nq2, c_h2, c_live, it == 0)
-                if it == 0:
-                    n_live = n
-            else:
-                _solve_contacts(x, w, v, b, c_n, c_h, c_live, n_live, push, c_n2, c_nq2, c_h2, c_live, False)
-        _friction(x, xp, w, push, prm.friction, keep_t)
+            for g in prange(2):
+                _sweep_segment(x, cl, pts, st, g, it, prm.iterations, 1.0 / (dt * dt))
+            _sweep_segment(x, cl, pts, st, 2, it, prm.iterations, 1.0 / (dt * dt))
+        _friction(x, xp, w, st.push, prm.friction, 1.0 - prm.c_contact)
     return queries
+
+
+@njit
+def _sweep_segment(x, cl, pts, st, g, it, iterations, at_scale):
+    """Sweep ``it`` of segment ``g``: its constraints, then its contacts (step 4). The first and last
+    sweeps visit all of them (the first lists the active constraints and live contacts), the others
+    those listed."""
+    full = it == 0 or it == iterations - 1
+    c0, p0 = cl.c_seg[g], pts.p_seg[g]
+    counts = st.counts
+    n = _solve_distances(x, cl.inv_mass, cl.c_i, cl.c_j, cl.c_lo, cl.c_hi, cl.c_alpha, cl.c_relax, cl.c_corner,
+                         cl.c_cos_lo, cl.c_cos_hi, cl.c_once, st.lam, at_scale, st.active, c0, cl.c_seg[g + 1],
+                         counts[g, 2], full, SYMMETRIC and it % 2 == 1)
+    if it == 0:
+        counts[g, 2] = n
+    if full:
+        n = _solve_contacts(x, cl.inv_mass, pts.pt_v, pts.pt_b, st.c_n, st.c_h, st.c_list, p0, counts[g, 0],
+                            st.push, st.c_n2, st.c_nq2, st.c_h2, st.c_live, it == 0)
+        if it == 0:
+            counts[g, 1] = n
+    else:
+        _solve_contacts(x, cl.inv_mass, pts.pt_v, pts.pt_b, st.c_n, st.c_h, st.c_live, p0, counts[g, 1], st.push,
+                        st.c_n2, st.c_nq2, st.c_h2, st.c_live, False)
+
+
+@njit
+def _contacts_of_segment(x, w, pts, grid, prm, st, g):
+    """Contact generation (step 3) of segment ``g``'s points; its counts in ``st.counts[g]``."""
+    st.counts[g, 0], st.counts[g, 3] = _make_contacts(
+        x, w, pts.pt_v, pts.pt_b, pts.pt_skin, pts.spheres, grid, prm.use_grid, prm.reach, prm.max_push, prm.reuse,
+        st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2, st.c_h2, pts.p_seg[g],
+        pts.p_seg[g + 1])

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vfit_engine.sim.partition import halves, segment_of, segments
 from vfit_engine.sim.state import State
 
 
@@ -210,6 +211,12 @@ class SolverVerlet:
         n = model.particle_count
         self._inv_mass = np.ascontiguousarray(model.inv_mass, dtype=np.float64).copy()
         self._gravity = np.ascontiguousarray(self.settings.gravity, dtype=np.float64)
+        # the kernel's numbering: the cloth in two halves (vfit_engine.sim.partition)
+        self._order, self._rank, self._half = halves(model.rest_pos)
+        self._k_inv_mass = np.ascontiguousarray(self._inv_mass[self._order])
+        self._x, self._xp = np.zeros((n, 3)), np.zeros((n, 3))
+        self._k_pins = np.ascontiguousarray(self._rank[model.pin_indices])
+        self._counts = np.zeros((3, 4), dtype=np.int64)
         self._build_constraints()
         self.points = points if points is not None else contact_points(np.zeros(0, np.int64), np.zeros(1, np.int64),
                                                                        model.rest_pos, surface=False)
@@ -299,7 +306,11 @@ class SolverVerlet:
             raise ValueError("spheres must have shape (S, 4): centre and radius")
         skin = np.full(p, self.contact.surface_skin)
         skin[:self.points.vertex_count] = self.contact.skin
-        self._pt_skin = skin
+        v = self.points.verts
+        order, self._p_seg = segments(segment_of(self._half, v[:, 0], v[:, 1], v[:, 2]))
+        self._pt_v = np.ascontiguousarray(self._rank[v[order]])
+        self._pt_b = np.ascontiguousarray(self.points.bary[order])
+        self._pt_skin = np.ascontiguousarray(skin[order])
         self._p_last = np.zeros((p, 3))
         self._d_last = np.full(p, -np.inf)
         self._c_n, self._c_nq, self._c_h = np.zeros((p, 3)), np.zeros(p), np.zeros(p)
@@ -326,6 +337,7 @@ class SolverVerlet:
         order = np.argsort(np.minimum(depth[self._c_i], depth[self._c_j]), kind="stable")
         for name in CONSTRAINT_ARRAYS:
             setattr(self, name, np.ascontiguousarray(getattr(self, name)[order]))
+        self._const_dt = None
 
     def allow_stretch(self, vertices, strain):
         """Let the cloth among ``vertices`` (k,) int64 stretch freely up to ``strain`` (fraction).
@@ -403,15 +415,25 @@ class SolverVerlet:
         from vfit_engine.kernels.cloth import ClothArrays
 
         k, kd = self.effective_constants(dt)
-        keep = (k > 0) | (kd > 0)
+        keep = np.flatnonzero((k > 0) | (kd > 0))
         m = self.model
-        self._cloth = ClothArrays(self._inv_mass, self._gravity,
-                                  np.ascontiguousarray(m.spring_indices[keep, 0]),
-                                  np.ascontiguousarray(m.spring_indices[keep, 1]),
-                                  np.ascontiguousarray(m.spring_rest[keep]), np.ascontiguousarray(k[keep]),
-                                  np.ascontiguousarray(kd[keep]), self._c_i, self._c_j, self._c_lo, self._c_hi,
-                                  self._c_alpha, self._c_relax, self._c_corner, np.ascontiguousarray(np.cos(self._t_lo)),
-                                  np.ascontiguousarray(np.cos(self._t_hi)), np.ascontiguousarray(self._c_kind == KIND_SHEAR))
+        # the explicit springs, given numbering (init_state), and both families in the kernel's
+        self._explicit = (m.spring_indices[keep], m.spring_rest[keep], k[keep], kd[keep])
+        rank, corner = self._rank, self._c_corner
+        s_order, sp_seg = segments(segment_of(self._half, *self._explicit[0].T))
+        sp = keep[s_order]
+        c_order, c_seg = segments(segment_of(self._half, self._c_i, self._c_j, corner))
+
+        def arr(a, order):
+            return np.ascontiguousarray(a[order])
+
+        self._cloth = ClothArrays(
+            self._k_inv_mass, self._gravity, arr(rank[m.spring_indices[:, 0]], sp), arr(rank[m.spring_indices[:, 1]], sp),
+            arr(m.spring_rest, sp), arr(k, sp), arr(kd, sp), arr(rank[self._c_i], c_order), arr(rank[self._c_j], c_order),
+            arr(self._c_lo, c_order), arr(self._c_hi, c_order), arr(self._c_alpha, c_order),
+            arr(self._c_relax, c_order), arr(np.where(corner >= 0, rank[np.maximum(corner, 0)], -1), c_order),
+            arr(np.cos(self._t_lo), c_order), arr(np.cos(self._t_hi), c_order),
+            arr(self._c_kind == KIND_SHEAR, c_order), sp_seg, c_seg)
         self._c_air = 1.0 - math.exp(-self.settings.air_damping * dt)
         self._const_dt = dt
 
@@ -432,9 +454,7 @@ class SolverVerlet:
         if x.shape != (m.particle_count, 3):
             raise ValueError(f"pos must have shape ({m.particle_count}, 3)")
         v = np.zeros_like(x) if vel is None else np.broadcast_to(np.asarray(vel, dtype=np.float64), x.shape)
-        c = self._cloth
-        f = eval_spring_forces(x, np.ascontiguousarray(x - v * dt), dt, np.stack([c.sp_i, c.sp_j], axis=1),
-                               c.sp_rest, c.sp_k, c.sp_kd)
+        f = eval_spring_forces(x, np.ascontiguousarray(x - v * dt), dt, *self._explicit)
         free = (self._inv_mass > 0)[:, None]
         a0 = np.where(free, self._inv_mass[:, None] * f + self._gravity, 0.0)
         v = np.where(free, v, 0.0)
@@ -470,25 +490,37 @@ class SolverVerlet:
             if state.pin_target.shape != (m.pin_count, 3):
                 raise ValueError(f"pin_target must have shape ({m.pin_count}, 3)")
             np.take(state.pos, m.pin_indices, axis=0, out=self._pin_from)
-            pins = (m.pin_indices, self._pin_from, np.ascontiguousarray(state.pin_target, dtype=np.float64))
+            pins = (self._k_pins, self._pin_from, np.ascontiguousarray(state.pin_target, dtype=np.float64))
         else:
             pins = (self._no_pins, self._no_pin_pos, self._no_pin_pos)
         c = self.contact
         prm = StepParams(dt, self._c_air, int(self.settings.iterations), float(c.reach), float(c.friction),
                          float(self.max_push), 1.0 - math.exp(-float(c.damping) * dt), float(c.reuse),
                          self.body is not None)
-        pts = ContactPoints(self.points.verts, self.points.bary, self._pt_skin, self._spheres)
+        pts = ContactPoints(self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._p_seg)
         cst = ContactState(self._p_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_list, self._push,
-                           self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2, self._c_live)
+                           self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2, self._c_live,
+                           self._counts)
+        x, xp = self._x, self._xp
+        np.take(state.pos, self._order, axis=0, out=x)
+        np.take(state.pos_prev, self._order, axis=0, out=xp)
         spans = [(0, n_sub)] if not self.colliders else [(s, s + 1) for s in range(n_sub)]
         for begin, end in spans:
-            self.contact_queries += cloth_substeps(state.pos, state.pos_prev, self._cloth, *pins, pts, self._grid, prm,
-                                                   cst, begin, end, n_sub)
+            self.contact_queries += cloth_substeps(x, xp, self._cloth, *pins, pts, self._grid, prm, cst, begin, end,
+                                                   n_sub)
             for col in self.colliders:
-                col.project(state.pos, state.pos_prev, self._inv_mass)
+                col.project(x, xp, self._k_inv_mass)
+        state.pos[self._order] = x
+        state.pos_prev[self._order] = xp
         state.time += dt * n_sub
         state.step_count += n_sub
         return state
+
+    @property
+    def segment_sizes(self):
+        """(3,) int64: constraints in the first half of the cloth, the second, and across
+        (:mod:`vfit_engine.sim.partition`; the first two run on two threads)."""
+        return np.diff(segments(segment_of(self._half, self._c_i, self._c_j, self._c_corner))[1])
 
     @property
     def constraint_count(self):
