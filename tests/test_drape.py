@@ -123,7 +123,8 @@ def test_report_of_a_drape(skirt_run):
     parts = report["strain_by_body_part"]
     assert "pelvis" in parts and "head" not in parts and report["too_tight"] == []
     assert sum(p["edges"] for p in parts.values()) <= setup.garment.mesh.edges().shape[0]
-    assert max(p["max_strain"] for p in parts.values()) <= res.metrics["max_strain"] + 1e-12
+    # (the report gives the parts' strains to 9 decimals)
+    assert max(p["max_strain"] for p in parts.values()) <= res.metrics["max_strain"] + 1e-9
 
 
 def test_strain_by_part_says_where_it_is_too_tight(skirt_run):

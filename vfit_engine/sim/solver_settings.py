@@ -1,0 +1,103 @@
+"""Settings of the cloth solver (:class:`vfit_engine.sim.solver_verlet.SolverVerlet`): its substeps, sweeps and
+constraint bands (:class:`VerletSettings`), and how the cloth meets the body (:class:`ContactSettings`)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class VerletSettings:
+    """Solver settings.
+
+    Attributes
+    ----------
+    substeps : int
+        Substeps per :meth:`SolverVerlet.step_frame`.
+    gravity : (3,) float, m/s^2
+    air_damping : float, 1/s
+        Velocity decay rate; per step ``c = 1 - exp(-air_damping dt)``.
+    iterations : int
+        Gauss-Seidel sweeps over the constraints and contacts per substep.
+    slack, compression : float
+        The band (fractions of the rest length) in which a stretch constraint holds no force: woven
+        yarns straighten their crimp at almost no load before the fabric resists (``slack``), and
+        buckle at once under compression (``compression``: a little keeps the cloth from rippling
+        at the scale of its mesh). Beyond the band the material's stretch stiffness acts.
+    bend_limit : float or None
+        Limit on the bend pairs (second neighbours): they may shorten freely (the cloth folds) but not
+        lengthen by more than this without resistance, so folds modelled into the garment -- a turned
+        hem, a collar, a lapel -- do not open out; beyond it they resist compliantly
+        (:data:`vfit_engine.sim.solver_verlet.BEND_LIMIT_SOFTNESS`). None: bend springs only.
+    shear_limit_deg : float or None
+        Polygon corner angles change by at most this (Provot's shear limit, as angle constraints on
+        ``Model.corners``). None: no shear limit, and the shear springs act as explicit springs.
+    shear_restore : float
+        Weight (Gauss-Seidel relaxation) of the compliant shear springs that pull the corners back to
+        their modelled angles within the limit; 0 leaves the corners free within it.
+    relax_by_stiffness : bool
+        Weigh the stretch constraints' corrections by their stiffness (``relax``,
+        :mod:`vfit_engine.kernels.cloth`): where the body forces a stretch, the stretch is shared as an
+        elastic sheet shares it instead of short stiff edges taking it all.
+    stability_safety : float
+        Fraction of the explicit stability bound the explicit springs are softened to; 0 disables
+        softening.
+    """
+
+    substeps: int = 8
+    gravity: tuple = (0.0, -9.81, 0.0)
+    air_damping: float = 0.5
+    iterations: int = 12
+    slack: float = 0.015
+    compression: float = 0.3
+    bend_limit: float | None = 0.015
+    shear_limit_deg: float | None = 10.0
+    shear_restore: float = 0.02
+    relax_by_stiffness: bool = True
+    stability_safety: float = 0.2
+
+    def __post_init__(self):
+        if int(self.substeps) < 1 or int(self.iterations) < 0:
+            raise ValueError("substeps must be >= 1 and iterations >= 0")
+        if len(self.gravity) != 3 or not all(math.isfinite(g) for g in self.gravity):
+            raise ValueError("gravity must be three finite numbers")
+        if not (self.air_damping >= 0 and self.stability_safety >= 0):
+            raise ValueError("air_damping and stability_safety must be >= 0")
+        for name in ("slack", "bend_limit"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be finite and >= 0")
+        if not 0.0 <= self.compression < 1.0:
+            raise ValueError("compression must be in [0, 1)")
+        if self.shear_limit_deg is not None and not 0.0 < self.shear_limit_deg < 90.0:
+            raise ValueError("shear_limit_deg must be in (0, 90)")
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """How the cloth meets the body.
+
+    Attributes
+    ----------
+    skin : float, m
+        Clearance the cloth's vertices keep from the body.
+    surface_skin : float, m
+        Clearance of the contact points inside the cloth's triangles (they lie between vertices,
+        where a smaller clearance already keeps the surface out).
+    reach : float, m
+        Contacts are made for points within ``skin + reach`` of the body.
+    friction : float
+        Coulomb coefficient.
+    damping : float, 1/s
+        Decay rate of the tangential velocity of pushed cloth (cloth resting on skin comes to rest).
+    reuse : float, m
+        A point in contact that moved less than this since its last exact query keeps that query's
+        tangent plane; 0 queries every substep.
+    """
+
+    skin: float = 0.002
+    surface_skin: float = 0.001
+    reach: float = 0.002
+    friction: float = 0.8
+    damping: float = 0.0
+    reuse: float = 0.0005
