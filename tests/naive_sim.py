@@ -116,7 +116,7 @@ def project_angle(x, w, i, j, k, cos_lo, cos_hi, relax):
     return x, True
 
 
-def distance_sweep(x, w, c, lam, at_scale, visit=None):
+def distance_sweep(x, w, c, lam, at_scale, visit=None, hot=None):
     """One Gauss-Seidel sweep over the constraints ``visit`` (default: all, in order) (copies).
 
     ``c`` is a dict of the constraint arrays (``i j lo hi alpha relax corner cos_lo cos_hi once``). A
@@ -129,13 +129,14 @@ def distance_sweep(x, w, c, lam, at_scale, visit=None):
     -------
     x, lam, active
         ``active``: the constraints visited that acted, were outside their band, or lie within
-        ``ACTIVE_BAND`` of an end (what the kernel's later sweeps visit), in visit order; never those
-        marked ``once`` (solved in the full sweeps only).
+        ``ACTIVE_BAND`` of an end, or with a vertex marked in ``hot`` (n,) bool (what the kernel's later
+        sweeps visit), in visit order; never those marked ``once`` (solved in the full sweeps only).
     """
     from vfit_engine.kernels.cloth import ACTIVE_BAND
 
     x, lam = x.copy(), lam.copy()
     once = c.get("once", np.zeros(len(c["i"]), dtype=bool))
+    hot = np.zeros(x.shape[0], dtype=bool) if hot is None else hot
     active = []
     for a in (range(len(c["i"])) if visit is None else visit):
         i, j = c["i"][a], c["j"][a]
@@ -143,7 +144,7 @@ def distance_sweep(x, w, c, lam, at_scale, visit=None):
             continue
         if c["corner"][a] >= 0:
             x, moved = project_angle(x, w, i, j, c["corner"][a], c["cos_lo"][a], c["cos_hi"][a], c["relax"][a])
-            if moved:
+            if moved or hot[i] or hot[j] or hot[c["corner"][a]]:
                 active.append(a)
             continue
         d = x[j] - x[i]
@@ -154,7 +155,7 @@ def distance_sweep(x, w, c, lam, at_scale, visit=None):
         elif lam[a] > 0 or length < lo:  # pushing out: lam >= 0
             new = max(lam[a] + c["relax"][a] * (lo - length - at * lam[a]) / (w[i] + w[j] + at), 0.0)
         else:
-            if not once[a] and (hi - length < ACTIVE_BAND * hi or length - lo < ACTIVE_BAND * hi):
+            if not once[a] and (hi - length < ACTIVE_BAND * hi or length - lo < ACTIVE_BAND * hi or hot[i] or hot[j]):
                 active.append(a)
             continue
         if not once[a]:

@@ -180,11 +180,12 @@ def _constraints(rng, x, count=70, angles=25):
     return c
 
 
-def _kernel_sweep(x, w, c, lam, active, n_active, first):
+def _kernel_sweep(x, w, c, lam, active, n_active, first, hot=None):
     from vfit_engine.kernels.cloth import _solve_distances
 
+    hot = np.zeros(x.shape[0], np.bool_) if hot is None else hot
     n = _solve_distances(x, w, c["i"], c["j"], c["lo"], c["hi"], c["alpha"], c["relax"], c["corner"], c["cos_lo"],
-                         c["cos_hi"], c["once"], lam, AT_SCALE, active, 0, c["i"].size, n_active, first, False)
+                         c["cos_hi"], c["once"], lam, AT_SCALE, active, hot, 0, c["i"].size, n_active, first, False)
     return n
 
 
@@ -235,6 +236,24 @@ def test_distance_sweep_with_held_forces_matches_reference():
     released = (lam0 != 0) & (ref_lam == 0)
     assert released.sum() >= 3
     assert np.all(ref_lam[lam0 < 0] <= 0) and np.all(ref_lam[lam0 > 0] >= 0)
+
+
+def test_constraints_of_hot_vertices_are_listed():
+    """A constraint inside its band is listed for the middle sweeps when one of its vertices is hot (pushed
+    hard by the contacts in the last substep), and only then; the reference lists the same."""
+    rng, x, w, c = _sweep_data(3)
+    hot = np.zeros(x.shape[0], np.bool_)
+    hot[rng.choice(x.shape[0], 4, replace=False)] = True
+    lam0 = np.zeros(c["i"].size)
+    _, _, cold = naive_sim.distance_sweep(x, w, c, lam0, AT_SCALE)
+    ref_x, ref_lam, ref_active = naive_sim.distance_sweep(x, w, c, lam0, AT_SCALE, hot=hot)
+    got_x, got_lam, active = x.copy(), lam0.copy(), np.zeros(c["i"].size, np.int64)
+    n = _kernel_sweep(got_x, w, c, got_lam, active, 0, True, hot=hot)
+    assert active[:n].tolist() == ref_active and set(cold) < set(ref_active)
+    np.testing.assert_allclose(got_x, ref_x, rtol=1e-10, atol=1e-13)
+    ends = np.stack([c["i"], c["j"], np.where(c["corner"] >= 0, c["corner"], c["i"])], axis=1)
+    added = sorted(set(ref_active) - set(cold))
+    assert all(hot[ends[a]].any() for a in added)
 
 
 def test_once_constraints_stay_out_of_the_active_set():
@@ -409,7 +428,7 @@ def test_contact_point_is_pushed_exactly_onto_its_plane():
 
 
 def test_friction_matches_reference_and_analytic():
-    from vfit_engine.kernels.cloth import _friction
+    from vfit_engine.kernels.cloth import PUSH_HOT, _friction
 
     rng = np.random.default_rng(12)
     n = 60
@@ -418,20 +437,23 @@ def test_friction_matches_reference_and_analytic():
     push = 0.01 * rng.normal(size=(n, 3)) * (rng.random(n) < 0.7)[:, None]
     w = np.ones(n)
     w[:4] = 0.0
+    hot = np.ones(n, np.bool_)
     for mu, keep in ((0.0, 1.0), (0.8, 1.0), (0.5, 0.7)):
         ref = naive_sim.contact_velocity(x, xp, w, push, mu, keep)
         got = xp.copy()
-        _friction(x, got, w, push, mu, keep)
+        _friction(x, got, w, push, mu, keep, hot)
         np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-15)
         assert np.array_equal(got[~np.any(push != 0, axis=1)], xp[~np.any(push != 0, axis=1)])
+        # the vertices pushed more than PUSH_HOT are marked (their constraints stay in the next middle sweeps)
+        assert np.array_equal(hot, np.linalg.norm(push, axis=1) > PUSH_HOT) and 0 < hot.sum() < n
     # one vertex pushed up by 1 mm while it moved down 3 mm and sideways 5 mm in the step: its
     # approaching normal velocity goes (the push adds none), the sideways one loses mu x 3 mm
     x1, xp1 = np.array([[0.0, 0.0, 0.0]]), np.array([[-0.005, 0.002, 0.0]])  # moved (+5, -2) mm after the push
     push1 = np.array([[0.0, 0.001, 0.0]])
-    _friction(x1, xp1, np.ones(1), push1, 0.5, 1.0)
+    _friction(x1, xp1, np.ones(1), push1, 0.5, 1.0, np.zeros(1, np.bool_))
     np.testing.assert_allclose(x1 - xp1, [[0.005 - 0.5 * 0.003, 0.0, 0.0]], atol=1e-16)
     xp1 = np.array([[-0.005, 0.002, 0.0]])
-    _friction(x1, xp1, np.ones(1), push1, 2.0, 1.0)  # friction enough to stop it: never reverses
+    _friction(x1, xp1, np.ones(1), push1, 2.0, 1.0, np.zeros(1, np.bool_))  # friction enough to stop it: never reverses
     np.testing.assert_allclose(x1 - xp1, 0.0, atol=1e-16)
 
 
@@ -479,7 +501,8 @@ def _fresh_contact_state(p, n, c):
     return ContactState(p_last=np.zeros((p, 3)), d_last=np.full(p, -np.inf), c_n=np.zeros((p, 3)), c_nq=np.zeros(p),
                         c_h=np.zeros(p), c_list=np.zeros(p, np.int64), push=np.zeros((n, 3)), f=np.zeros((n, 3)),
                         lam=np.zeros(c), active=np.zeros(c, np.int64), c_n2=np.zeros((p, 3)), c_nq2=np.full(p, np.nan),
-                        c_h2=np.zeros(p), c_live=np.zeros(p, np.int64), counts=np.zeros((3, 4), np.int64))
+                        c_h2=np.zeros(p), c_live=np.zeros(p, np.int64), counts=np.zeros((3, 4), np.int64),
+                        hot=np.zeros(n, np.bool_))
 
 
 @pytest.mark.parametrize("iterations, split", [(1, False), (4, False), (4, True)])

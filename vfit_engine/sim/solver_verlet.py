@@ -226,6 +226,7 @@ class SolverVerlet:
         self._c_live = np.zeros(p, dtype=np.int64)
         self._c_n2, self._c_nq2, self._c_h2 = np.zeros((p, 3)), np.full(p, np.nan), np.zeros(p)
         self._push = np.zeros((self.model.particle_count, 3))
+        self._hot = np.zeros(self.model.particle_count, dtype=np.bool_)
 
     def sweep_from(self, vertices):
         """Sweep the constraints outward from ``vertices`` (by graph distance, nearest first).
@@ -368,6 +369,7 @@ class SolverVerlet:
         v = np.where(free, v, 0.0)
         self._d_last[:] = -np.inf
         self._c_nq2[:] = np.nan
+        self._hot[:] = False
         self._lam[:] = 0.0
         return State(x, x - v * dt + 0.5 * a0 * dt * dt, dt)
 
@@ -408,7 +410,7 @@ class SolverVerlet:
         pts = ContactPoints(self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._p_seg)
         cst = ContactState(self._p_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_list, self._push,
                            self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2, self._c_live,
-                           self._counts)
+                           self._counts, self._hot)
         x, xp = self._x, self._xp
         np.take(state.pos, self._order, axis=0, out=x)
         np.take(state.pos_prev, self._order, axis=0, out=xp)
