@@ -372,6 +372,42 @@ def test_waistband_pins_are_spread_evenly_on_a_wider_body():
     assert info["refitted_groups"] == 0 and np.allclose(same, ring, atol=1e-12)
 
 
+def test_edges_between_pins_are_lifted_clear_of_the_body():
+    """Two pins 2 mm above a sphere of 10 cm, 8 cm apart: the straight edge between them runs 6 mm inside
+    it (no contact can push it out: both ends are pinned). lift_chords raises both ends until the whole
+    edge is clear by the given clearance; an edge already clear is left as it is."""
+    import math
+
+    import trimesh
+
+    from vfit_engine.garment.pin_fit import lift_chords
+    from vfit_engine.io.mesh import MeshData
+
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.1)
+    body, tris = np.asarray(sphere.vertices), np.asarray(sphere.faces, dtype=np.int64)
+    r = 0.102
+    tri = MeshData(verts=np.zeros((3, 3)), face_verts=np.arange(3), face_offsets=np.array([0, 3]))
+
+    def edge(half_chord):
+        a = math.asin(half_chord / r)
+        pins = r * np.array([[-math.sin(a), math.cos(a), 0.0], [math.sin(a), math.cos(a), 0.0]])
+        return tri.with_verts(np.vstack([pins, [[0.0, 0.3, 0.0]]])), pins
+
+    def deepest_mm(p):  # of the straight edge, below the true sphere's surface
+        t = np.linspace(0.0, 1.0, 201)[:, None]
+        return 1000.0 * (0.1 - np.linalg.norm(p[0] * (1 - t) + p[1] * t, axis=1).min())
+
+    mesh, pins = edge(0.04)
+    assert deepest_mm(pins) > 6.0
+    target, lifted = lift_chords(mesh, np.array([0, 1]), pins, body, tris, 0.001)
+    assert lifted == 2 and deepest_mm(target) < -0.95  # >= 1 mm clear (to the facets' 0.01 mm)
+    # lifted along the normals, no further than needed (a 8.2 mm deficit at the middle, ends tilted 23 deg)
+    assert np.all(np.abs(np.linalg.norm(target, axis=1) - r - 0.0078) < 0.0003)
+    mesh, pins = edge(0.005)  # 1 cm apart: the edge sags 0.12 mm, 1.9 mm clear
+    same, lifted = lift_chords(mesh, np.array([0, 1]), pins, body, tris, 0.001)
+    assert lifted == 0 and np.array_equal(same, pins)
+
+
 def test_pin_patch_is_moved_rigidly():
     from vfit_engine.garment.pin_fit import fit_patch
 

@@ -224,7 +224,7 @@ def _pins(garment, rest_pos, placed, start, body, reference, tris, pin, graded, 
         idx, att = idx[keep], att.select(keep)
     if idx.size:
         idx, att, targets, fit = fit_pins(mesh.with_verts(rest_pos), idx, att, body.surface, tris, st.contact.skin,
-                                          st.pin_strain, st.pin_fit_strain)
+                                          st.pin_strain, st.pin_fit_strain, chord_skin=st.contact.surface_skin)
         summary.update(fit)
     summary["count"] = int(idx.size)
     if idx.size:
