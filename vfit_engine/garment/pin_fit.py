@@ -301,6 +301,9 @@ def fit_pins(mesh, idx, att, body_verts, body_tris, skin, pin_strain, fit_strain
 #: Points along each edge between two pins that :func:`lift_chords` keeps out of the body, and its rounds.
 CHORD_SAMPLES = 7
 CHORD_ROUNDS = 3
+#: A pin is lifted at most this far in all (m): an edge deeper in than a bulge can explain (through an arm)
+#: is not the pins' to fix.
+CHORD_MAX_LIFT = 0.01
 
 
 def lift_chords(mesh, idx, target, body_verts, body_tris, skin):
@@ -310,9 +313,9 @@ def lift_chords(mesh, idx, target, body_verts, body_tris, skin):
     bulges between them (a waistband's edge over a belly: 2-3 mm into a body 8-15 cm wider at the
     waist), and no contact can push it out -- both its ends are pinned. Each such edge's deepest
     sample below ``skin`` lifts both its ends by that much along their triangles' normals
-    (``CHORD_ROUNDS`` times: a lift can bring a neighbouring edge in). ``skin`` is the clearance the
-    contact points inside the cloth's triangles keep (half the vertices'), so the edges of pins the
-    vertex clearance apart on a gently curved body stay as they are.
+    (``CHORD_ROUNDS`` times: a lift can bring a neighbouring edge in; at most ``CHORD_MAX_LIFT`` in
+    all). ``skin`` is the clearance the contact points inside the cloth's triangles keep (half the
+    vertices'), so the edges of pins the vertex clearance apart on a gently curved body stay as they are.
 
     Returns
     -------
@@ -330,6 +333,7 @@ def lift_chords(mesh, idx, target, body_verts, body_tris, skin):
     a, b = slot[e[:, 0]], slot[e[:, 1]]
     t = np.linspace(0.0, 1.0, CHORD_SAMPLES + 2)[1:-1]
     moved = np.zeros(idx.size, dtype=bool)
+    total = np.zeros(idx.size)
     for _ in range(CHORD_ROUNDS if e.size else 0):
         pts = (target[a][:, None, :] * (1.0 - t)[None, :, None] + target[b][:, None, :] * t[None, :, None])
         tri, bary = attach_to_body(pts.reshape(-1, 3), body_verts, body_tris)
@@ -342,9 +346,11 @@ def lift_chords(mesh, idx, target, body_verts, body_tris, skin):
         lift = np.zeros(idx.size)
         np.maximum.at(lift, a, deficit)
         np.maximum.at(lift, b, deficit)
-        up = lift > 0.0
+        lift = np.minimum(lift, CHORD_MAX_LIFT - total)
+        up = lift > 1e-9
         tri, bary = attach_to_body(target[up], body_verts, body_tris)
         target[up] += lift[up, None] * _tri_frames(body_verts, body_tris, tri)[:, 2]
+        total += lift
         moved |= up
     return target, int(np.count_nonzero(moved))
 
