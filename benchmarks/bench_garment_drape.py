@@ -116,7 +116,8 @@ def main(argv=None):
     queries = res.info.get("contact_queries", 0)
     collide_s = per_query * queries
     out = dict(
-        garment=args.garment, threads=numba.get_num_threads(), subdivided_vertices=sub.mesh.n_verts, springs_note="structural+shear+bend",
+        garment=args.garment, threads=numba.get_num_threads(), subdivided_vertices=sub.mesh.n_verts,
+        springs_note="structural+shear+bend",
         numba_import_s=round(t_import, 3), collider_build_s=round(t_collider, 3), prepare_s=round(t_setup, 3),
         first_call_s=round(t_first, 3), warm_wall_s=round(res.wall_time, 3), warm_total_s=round(total, 3),
         setup_s=round(res.setup_time, 3), steps=res.steps, frames=res.frames, converged=res.converged,

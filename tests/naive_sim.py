@@ -282,7 +282,8 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     x_new[pin_idx] = pin_from + alpha_pins * (pin_to - pin_from)
     v, b, skin, spheres = pts
     planes = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push)
-    c_seg, p_seg = segments if segments is not None else ([0, len(cl["i"])] + [len(cl["i"])] * 2, [0, len(v)] + [len(v)] * 2)
+    n_c, n_p = len(cl["i"]), len(v)
+    c_seg, p_seg = segments if segments is not None else ([0, n_c, n_c, n_c], [0, n_p, n_p, n_p])
     lam = np.zeros(len(cl["i"]))
     push = np.zeros_like(x_new)
     active, live = {}, {}

@@ -11,7 +11,8 @@ cloth behavior"; Baraff & Witkin 1998 for the damping along the spring.) The pai
 of forces sums to zero and acts along the spring axis.
 
 The forces are scattered spring by spring onto both ends (:func:`_spring_forces`; the cloth kernel
-:mod:`vfit_engine.kernels.cloth` runs :func:`_add_spring_forces` over its springs' segments; :func:`eval_spring_forces` for callers).
+:mod:`vfit_engine.kernels.cloth` runs :func:`_add_spring_forces` over its springs' segments;
+:func:`eval_spring_forces` for callers).
 """
 import math
 

@@ -337,9 +337,9 @@ class SolverVerlet:
             return np.ascontiguousarray(a[order])
 
         self._cloth = ClothArrays(
-            self._k_inv_mass, self._gravity, arr(rank[m.spring_indices[:, 0]], sp), arr(rank[m.spring_indices[:, 1]], sp),
-            arr(m.spring_rest, sp), arr(k, sp), arr(kd, sp), arr(rank[self._c_i], c_order), arr(rank[self._c_j], c_order),
-            arr(self._c_lo, c_order), arr(self._c_hi, c_order), arr(self._c_alpha, c_order),
+            self._k_inv_mass, self._gravity, arr(rank[m.spring_indices[:, 0]], sp),
+            arr(rank[m.spring_indices[:, 1]], sp), arr(m.spring_rest, sp), arr(k, sp), arr(kd, sp),
+            arr(rank[self._c_i], c_order), arr(rank[self._c_j], c_order), arr(self._c_lo, c_order), arr(self._c_hi, c_order), arr(self._c_alpha, c_order),
             arr(self._c_relax, c_order), arr(np.where(corner >= 0, rank[np.maximum(corner, 0)], -1), c_order),
             arr(np.cos(self._t_lo), c_order), arr(np.cos(self._t_hi), c_order),
             arr(self._c_kind == KIND_SHEAR, c_order), sp_seg, c_seg)
