@@ -114,6 +114,18 @@ def test_measure_makehuman_units(tmp_path, body_model):
     assert "1665" in r.output or "1589" in r.output
 
 
+def test_measure_reads_a_body_with_a_byte_order_mark(tmp_path, body_model):
+    """The same body written with a UTF-8 byte-order mark measures the same (no vertex lost)."""
+    from vfit_engine.body.bodyio import write_body
+
+    write_body(tmp_path / "b.obj", body_model, body_model.default_verts("female"))
+    (tmp_path / "bom.obj").write_bytes(b"\xef\xbb\xbf" + (tmp_path / "b.obj").read_bytes())
+    a = run("measure", tmp_path / "b.obj", "--json", tmp_path / "a.json")
+    b = run("measure", tmp_path / "bom.obj", "--json", tmp_path / "b.json")
+    assert a.exit_code == b.exit_code == 0, b.output
+    assert json.loads((tmp_path / "a.json").read_text())["values"] == json.loads((tmp_path / "b.json").read_text())["values"]
+
+
 def test_measure_bad_inputs(tmp_path):
     import trimesh
 

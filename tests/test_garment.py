@@ -186,6 +186,13 @@ def test_mhclo_synthetic_parse_and_evaluate(tmp_path):
         evaluate_mhclo(b, body[:3])
 
 
+def test_mhclo_with_a_byte_order_mark(tmp_path):
+    """A byte-order mark before the first line is not part of its key (the binding would be lost)."""
+    p = tmp_path / "bom.mhclo"
+    p.write_bytes(b"\xef\xbb\xbfverts 0\n1 2 3 0.5 0.25 0.25\n")
+    np.testing.assert_array_equal(parse_mhclo(p).ref_verts, [[1, 2, 3]])
+
+
 def test_mhclo_garbled(tmp_path):
     p = tmp_path / "bad.mhclo"
     p.write_text("name x\nverts 0\n1 2 3 0.5 zero 0.5\n")

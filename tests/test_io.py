@@ -125,6 +125,23 @@ def test_obj_crlf_and_line_continuation(tmp_path):
     assert [list(f) for f in m.faces_list()] == [[0, 1, 2]]
 
 
+def test_byte_order_mark_is_not_part_of_the_first_line(tmp_path):
+    """A UTF-8 byte-order mark right before the first ``v`` (Windows editors write one): read as text it
+    glued itself to that line, the vertex was dropped and every face index shifted by one."""
+    p = tmp_path / "bom.obj"
+    p.write_bytes(b"\xef\xbb\xbfv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\n")
+    m = read_obj(p)
+    assert m.n_verts == 4 and [list(f) for f in m.faces_list()] == [[0, 1, 3, 2]]
+    np.testing.assert_array_equal(m.verts[0], [0, 0, 0])
+    plain = tmp_path / "plain.ply"
+    write_ply(plain, m)
+    bom = tmp_path / "bom.ply"
+    bom.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())
+    r = read_ply(bom)
+    np.testing.assert_array_equal(r.verts, m.verts)
+    assert [list(f) for f in r.faces_list()] == [[0, 1, 3, 2]]
+
+
 def test_obj_negative_indices_are_relative_to_vertices_so_far(tmp_path):
     p = tmp_path / "neg.obj"
     p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 1 1 0\nf -3 -2 -1\nf 1 -1 3\n")

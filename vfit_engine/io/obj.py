@@ -42,7 +42,9 @@ def _read_text(path):
         data = Path(path).read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
-    text = data.decode("utf-8", errors="replace")
+    # utf-8-sig: a byte-order mark before the first line (Windows editors write one) is not part of it --
+    # read as text it glued itself to the first "v", which was then dropped and every face shifted by one
+    text = data.decode("utf-8-sig", errors="replace")
     if "\\" in text:
         text = re.sub(r"\\[ \t]*\r?\n", " ", text)
     return text

@@ -157,6 +157,8 @@ def read_ply(path, max_verts=MAX_VERTS):
         data = Path(path).read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if data.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte-order mark before the magic (Windows editors)
+        data = data[3:]
     fmt, elements, pos = _parse_header(data, path)
     names = [e[0] for e in elements]
     if "vertex" not in names:
