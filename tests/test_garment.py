@@ -18,12 +18,9 @@ needs_shared = pytest.mark.skipif(not GARMENTS.is_dir(), reason="../shared not p
 
 
 def _body_model():
-    try:
-        from vfit_engine.body.model import BodyModel
+    from vfit_engine.body.model import BodyModel
 
-        return BodyModel.load()
-    except Exception as exc:  # body model not written / data missing yet
-        pytest.skip(f"BodyModel not available: {exc}")
+    return BodyModel.load()  # a broken loader fails the test, not a skip
 
 
 def _tube(r, y0, y1, n_around=24, n_up=6, cx=0.0, cz=0.0):

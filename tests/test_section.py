@@ -307,14 +307,9 @@ def test_input_errors():
 # ----------------------------------------------------------------------------- the real body
 
 @pytest.fixture(scope="module")
-def body():
-    try:
-        from vfit_engine.body.model import BodyModel
-    except ImportError:
-        pytest.skip("vfit_engine.body.model.BodyModel is not importable yet")
-    bm = BodyModel.load()
-    verts = np.ascontiguousarray(bm.default_verts("female")[:13380])
-    return verts, np.asarray(bm.body_tris)
+def body(body_model):
+    verts = np.ascontiguousarray(body_model.default_verts("female")[:13380])
+    return verts, np.asarray(body_model.body_tris)
 
 
 def check_body(verts, tris):

@@ -91,14 +91,11 @@ def test_bad_input_raises_input_error():
 # ------------------------------------------------------------------ hm08 examples vs the morph solver
 @pytest.fixture(scope="module")
 def hm08():
-    try:
-        from vfit_engine.body.measure import Measurer
-        from vfit_engine.body.model import BodyModel
-        from vfit_engine.body.morph import Morpher
+    from vfit_engine.body.measure import Measurer
+    from vfit_engine.body.model import BodyModel
+    from vfit_engine.body.morph import Morpher
 
-        model = BodyModel.load()
-    except (ImportError, FileNotFoundError) as exc:
-        pytest.skip(f"body model not available: {exc}")
+    model = BodyModel.load()  # a broken loader fails here, not as a skip
     measurer = Measurer(model)
     return model, measurer, Morpher(model, measurer)
 
