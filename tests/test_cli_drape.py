@@ -216,6 +216,27 @@ def test_bad_inputs_exit_2(tmp_path):
     assert not out.exists() or (not list(out.glob("*.obj")) and not list(out.glob(".*tmp")))
 
 
+def test_absurd_coordinates_and_coincident_vertices_exit_2(tmp_path):
+    """Coordinates of 1e155 (they overflowed a k-d tree with a traceback) and two vertices at one point
+    joined by an edge (a zero-length spring, the message named no file): one line naming file and vertex."""
+    text = DEMO_SKIRT.read_text().splitlines()
+    first = next(i for i, line in enumerate(text) if line.startswith("v "))
+    huge = tmp_path / "huge.obj"
+    huge.write_text("\n".join(text[:first] + ["v 1e155 0 0"] + text[first + 1:]) + "\n")
+    line = one_line_error(run(huge, "-o", tmp_path / "o"), 2)
+    assert "huge.obj" in line and "vertex 1 " in line and "1e+155" in line
+    faces = [line.split()[1:] for line in text if line.startswith("f ")]
+    a, b = (int(c.split("/")[0]) for c in faces[0][:2])  # two corners of the first face: joined by an edge
+    verts = [i for i, line in enumerate(text) if line.startswith("v ")]
+    coincident = list(text)
+    coincident[verts[b - 1]] = text[verts[a - 1]]
+    same = tmp_path / "same.obj"
+    same.write_text("\n".join(coincident) + "\n")
+    line = one_line_error(run(same, "-o", tmp_path / "o"), 2)
+    assert "same.obj" in line and f"vertices {min(a, b)} and {max(a, b)}" in line and "same point" in line
+    assert not (tmp_path / "o").exists()
+
+
 @needs_shared
 def test_off_body_garment_without_binding_exits_2(tmp_path):
     """A MakeHuman garment moved 1 m in front of the body without its .mhclo: refused, the distance named."""

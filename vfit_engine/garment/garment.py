@@ -10,6 +10,10 @@ from vfit_engine.errors import InputError
 from vfit_engine.io.mesh import MAX_VERTS, MeshData, read_mesh
 from vfit_engine.units import LENGTH_UNITS
 
+#: Largest coordinate a garment file may hold, in its own units (1 km in mm): beyond it a file is not a
+#: garment (coordinates of 1e155 overflowed the k-d trees with a traceback).
+MAX_COORDINATE = 1e6
+
 #: Plausible garment height / body height (a bikini top ... a long coat or dress on a raised body).
 HEIGHT_RATIO_RANGE = (0.05, 1.3)
 #: Ratio a typical garment has; among plausible units the one closest to it (log scale) wins.
@@ -197,8 +201,9 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
     Raises
     ------
     InputError
-        Unreadable or garbled file, no vertices or faces, NaN/inf coordinates, more than
-        ``max_verts`` vertices, an unknown unit, or every face degenerate.
+        Unreadable or garbled file, no vertices or faces, NaN/inf coordinates or beyond
+        ``MAX_COORDINATE``, more than ``max_verts`` vertices, an unknown unit, every face degenerate, or
+        two vertices joined by an edge at the same point.
     """
     path = Path(path)
     if units != "auto" and units not in LENGTH_UNITS:
@@ -211,6 +216,11 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
     if not np.all(np.isfinite(mesh.verts)):
         bad = int(np.argmax(~np.all(np.isfinite(mesh.verts), axis=1)))
         raise InputError(f"{path}: vertex {bad + 1} has a NaN or infinite coordinate")
+    far = np.abs(mesh.verts) > MAX_COORDINATE
+    if far.any():
+        bad = int(np.argmax(far.any(axis=1)))
+        raise InputError(f"{path}: vertex {bad + 1} has a coordinate of {mesh.verts[bad][far[bad]][0]:.3g}, beyond "
+                         f"+-{MAX_COORDINATE:g} file units (1 km in mm): not a garment; check the export")
     if mesh.n_faces == 0:
         raise InputError(f"{path}: garment has no faces")
     warnings = []
@@ -230,6 +240,12 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
     if bad.any():
         warnings.append(f"dropped {int(bad.sum())} degenerate faces (repeated vertex or zero area)")
         mesh = mesh.select_faces(~bad)
+    e = mesh.edges()
+    flat = np.all(mesh.verts[e[:, 0]] == mesh.verts[e[:, 1]], axis=1)
+    if flat.any():
+        i, j = e[int(np.argmax(flat))] + 1
+        raise InputError(f"{path}: vertices {i} and {j} are at the same point but joined by an edge (coincident "
+                         "vertices): merge them or move one apart")
     used = np.zeros(mesh.n_verts, dtype=bool)
     used[mesh.face_verts] = True
     if not used.all():

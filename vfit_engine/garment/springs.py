@@ -275,7 +275,9 @@ def spring_constants(springs, stiffness, damping):
         raise InputError("stiffness and damping need one value per spring type (3)")
     rest = springs.rest
     if np.any(rest <= 0):
-        raise InputError("a spring has zero rest length (coincident vertices)")
+        i, j = springs.indices[int(np.argmax(rest <= 0))] + 1
+        raise InputError(f"vertices {i} and {j} of the garment are at the same point (a spring between them would "
+                         "have zero length): merge them or move one apart")
     scale = springs.area / (rest * rest)
     return stiffness[springs.type] * scale, damping[springs.type] * scale
 
