@@ -16,6 +16,9 @@ MORPH_OPTIONS = ("gender", "height", "weight") + _morph.GIRTH_OPTIONS + ("defini
 #: earlier one).
 OUTPUT_GLOBS = ("final.obj", "final.ply", "body.obj", "body.ply", "report.json", "preview.png", "frame_*.obj",
                 "frame_*.ply")
+#: An unpinned garment that did not settle and whose mean height fell by more than this (m) slid down the
+#: body: the error says so.
+FELL_M = 0.05
 
 
 def morph_options(func):
@@ -140,6 +143,12 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
         _summary(g, setup, result, report)
         click.echo(f"wrote {', '.join(written + [os.path.join(outdir, 'report.json')])}")
     if not result.converged:
+        drop = float(setup.start[:, 1].mean() - result.pos[:, 1].mean())
+        if setup.pins.indices.size == 0 and drop > FELL_M:
+            # unpinned, it slides down the body (or falls off it): say so, not only that it kept moving
+            click.echo(f"Error: the garment slid {100 * drop:.0f} cm down the body in {result.frames} frames and did "
+                       "not stop: nothing holds it up without pins; use --pin auto or a pin file", err=True)
+            ctx.exit(3)
         click.echo(f"Error: the cloth did not settle within {settings.max_frames} frames: {report['settle']['test']} "
                    f"failed (last frame: {100 * result.settle['share_moving']:.2f} % of the vertices moved more "
                    f"than {1000 * settings.settle_step:g} mm, the fastest {result.settle['max_step_mm']:.2f} mm)",

@@ -237,6 +237,15 @@ def test_absurd_coordinates_and_coincident_vertices_exit_2(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_unpinned_skirt_that_slides_down_is_named(tmp_path):
+    """``--pin none`` on a skirt: nothing holds it up and it slides down the legs; the error says so (it only
+    said that the cloth kept moving), and a pinned drape cut short keeps the plain message."""
+    line = one_line_error(run(DEMO_SKIRT, "-o", tmp_path / "a", "--pin", "none", "--frames", 60, "--every", 0), 3)
+    assert "slid" in line and "cm down the body" in line and "--pin auto" in line
+    line = one_line_error(run(DEMO_SKIRT, "-o", tmp_path / "b", "--frames", 5, "--every", 0), 3)
+    assert "did not settle within 5 frames" in line and "slid" not in line
+
+
 @needs_shared
 def test_off_body_garment_without_binding_exits_2(tmp_path):
     """A MakeHuman garment moved 1 m in front of the body without its .mhclo: refused, the distance named."""
