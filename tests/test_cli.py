@@ -109,9 +109,11 @@ def test_measure_makehuman_units(tmp_path, body_model):
     va = json.loads((tmp_path / "a.json").read_text())["values"]
     vb = json.loads((tmp_path / "b.json").read_text())["values"]
     assert all(abs(va[k] - vb[k]) < 1e-3 for k in va)
+    # an explicit unit that makes the body 16.6 m tall is refused, naming the unit its height says
     r = run("measure", tmp_path / "dm.obj", "--units", "m")
-    assert r.exit_code == 0  # honoured as asked; absurd values, but the user chose
-    assert "1665" in r.output or "1589" in r.output
+    assert r.exit_code == 2 and "not a human body" in r.output and "--units dm" in r.output, r.output
+    assert run("measure", tmp_path / "m.obj", "--units", "cm").exit_code == 2  # 1.7 cm tall
+    assert run("measure", tmp_path / "dm.obj", "--units", "dm").exit_code == 0
 
 
 def test_measure_reads_a_body_with_a_byte_order_mark(tmp_path, body_model):

@@ -88,6 +88,17 @@ def test_units_auto_uses_body_height(tmp_path):
         load_garment(p, units="inch")
 
 
+def test_explicit_units_that_make_a_garment_absurd_warn(tmp_path):
+    """--units m on a decimetre garment (a 6 m suit) or cm (6 mm): drawn as asked, with a warning naming the
+    unit its height says; a plausible explicit unit warns nothing."""
+    v, f = _tube(1.5, 0.0, 6.0)  # 6 units tall: dm
+    p = _write(tmp_path, "dm.obj", v, f)
+    for unit in ("m", "mm"):
+        g = load_garment(p, units=unit)
+        assert g.units == unit and any("implausible" in w and "says dm" in w for w in g.warnings), g.warnings
+    assert not [w for w in load_garment(p, units="dm").warnings if "implausible" in w]
+
+
 def test_bad_garments_raise(tmp_path):
     v, f = _tube(0.15, 0.0, 0.6)
     v_nan = v.copy()

@@ -23,6 +23,10 @@ def write_body(path, model: BodyModel, verts: np.ndarray, header: str | None = N
     write_mesh(path, body_mesh(model, verts), header=header)
 
 
+#: Heights (m) a body read in an explicit unit may have.
+BODY_HEIGHT_RANGE_M = (0.5, 3.0)
+
+
 def read_body(path, model: BodyModel, units: str = "auto") -> tuple[np.ndarray, str]:
     """Read a mesh with hm08 body topology and return its body vertices in metres.
 
@@ -53,8 +57,15 @@ def read_body(path, model: BodyModel, units: str = "auto") -> tuple[np.ndarray, 
     if missing:
         raise InputError(f"{path}: not hm08 body topology ({missing} of the body's edges are missing)")
     verts = mesh.verts[:N_BODY]
+    height = float(np.ptp(verts[:, 1]))
     if units == "auto":
-        units = guess_length_unit(float(np.ptp(verts[:, 1])), expected_m=1.65)
+        units = guess_length_unit(height, expected_m=1.65)
     elif units not in LENGTH_UNITS:
         raise InputError(f"unknown units {units!r}; use one of auto, {', '.join(LENGTH_UNITS)}")
+    elif not BODY_HEIGHT_RANGE_M[0] <= height * LENGTH_UNITS[units] <= BODY_HEIGHT_RANGE_M[1]:
+        # an explicit unit that makes the body 16 m or 2 cm tall is a mistake, not a choice to honour
+        raise InputError(f"{path}: the body is {height * LENGTH_UNITS[units]:.3g} m tall read in {units}, not a "
+                         f"human body ({BODY_HEIGHT_RANGE_M[0]:g}-{BODY_HEIGHT_RANGE_M[1]:g} m); its height says "
+                         f"{guess_length_unit(height, expected_m=1.65)}: give --units "
+                         f"{guess_length_unit(height, expected_m=1.65)} or --units auto")
     return np.ascontiguousarray(verts * LENGTH_UNITS[units]), units

@@ -233,6 +233,13 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
             warnings.append(
                 f"garment height {height:g} file units is implausible in every unit; assumed {units}"
             )
+    else:
+        body = DEFAULT_BODY_HEIGHT_M if body_height_m is None else float(body_height_m)
+        if not HEIGHT_RATIO_RANGE[0] <= height * LENGTH_UNITS[units] / body <= HEIGHT_RATIO_RANGE[1]:
+            guess, plausible = choose_units(height, body_height_m)
+            hint = f"its height says {guess}" if plausible else "no unit makes it garment-sized"
+            warnings.append(f"garment is {height * LENGTH_UNITS[units]:.3g} m tall read in {units}, implausible "
+                            f"for a garment on a {body:.2g} m body ({hint}); check --units")
     mesh.verts = np.ascontiguousarray(mesh.verts * LENGTH_UNITS[units])
     bad = degenerate_faces(mesh)
     if bad.all():
