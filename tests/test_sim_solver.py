@@ -111,6 +111,12 @@ def test_presets_and_material_json(tmp_path):
         resolve_material("tweed")
     with pytest.raises(InputError):
         Material("x", 0.1, 1, 1, 1, 1, 1, float("inf"))
+    # values outside a fabric's physical range are refused, naming the key and the range
+    for key, value in (("stretch_stiffness", 0.0), ("stretch_stiffness", 1e12), ("max_strain", 0.0),
+                       ("areal_density", 50.0)):
+        path.write_text(json.dumps({**good, key: value}))
+        with pytest.raises(InputError, match=f"{key} .* outside the physical range"):
+            load_material(path)
 
 
 # -- solver ----------------------------------------------------------------------------

@@ -46,6 +46,20 @@ from pathlib import Path
 from vfit_engine.errors import InputError
 
 
+#: Physical range of each field (min, max, unit): wider than any fabric's (10-2000 g/m^2; a knit's 100 N/m
+#: to a technical woven's 1e4 N/m of stretch stiffness), so what lies outside is a typo or a wrong unit.
+RANGES = {
+    "areal_density": (0.01, 2.0, "kg/m^2"),
+    "stretch_stiffness": (10.0, 1e5, "N/m"),
+    "shear_stiffness": (0.1, 1e4, "N/m"),
+    "bend_stiffness": (0.01, 1e3, "N/m"),
+    "stretch_damping": (0.0, 10.0, "N s/m"),
+    "shear_damping": (0.0, 10.0, "N s/m"),
+    "bend_damping": (0.0, 10.0, "N s/m"),
+    "max_strain": (0.01, 2.0, "fraction"),
+}
+
+
 @dataclass(frozen=True)
 class Material:
     """A fabric's membrane properties (SI units; see the module docstring).
@@ -80,9 +94,11 @@ class Material:
                 raise InputError(f"material {self.name!r}: {f.name} must be a number, got {value!r}")
             if not math.isfinite(value) or value < 0:
                 raise InputError(f"material {self.name!r}: {f.name} must be finite and >= 0, got {value!r}")
+            lo, hi, unit = RANGES[f.name]
+            if not lo <= value <= hi:
+                raise InputError(f"material {self.name!r}: {f.name} {value:g} {unit} is outside the physical range "
+                                 f"{lo:g}-{hi:g} {unit}")
             object.__setattr__(self, f.name, float(value))
-        if self.areal_density <= 0:
-            raise InputError(f"material {self.name!r}: areal_density must be > 0")
 
     @property
     def stiffness(self):
