@@ -99,6 +99,17 @@ def test_explicit_units_that_make_a_garment_absurd_warn(tmp_path):
     assert not [w for w in load_garment(p, units="dm").warnings if "implausible" in w]
 
 
+def test_triangle_soup_warns(tmp_path):
+    """A tube exported as unconnected triangles (no shared vertices): loaded, with a warning that says what it
+    is; the same tube welded warns nothing."""
+    v, f = _tube(0.15, 0.0, 0.6)
+    tris = np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]])
+    soup = _write(tmp_path, "soup.obj", v[tris].reshape(-1, 3), np.arange(tris.size).reshape(-1, 3))
+    g = load_garment(soup, units="m")
+    assert int(g.pieces.max()) + 1 == len(tris) and any("triangle soup" in w for w in g.warnings), g.warnings
+    assert not [w for w in load_garment(_write(tmp_path, "tube.obj", v, f), units="m").warnings if "soup" in w]
+
+
 def test_bad_garments_raise(tmp_path):
     v, f = _tube(0.15, 0.0, 0.6)
     v_nan = v.copy()

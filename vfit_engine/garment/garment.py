@@ -10,6 +10,10 @@ from vfit_engine.errors import InputError
 from vfit_engine.io.mesh import MAX_VERTS, MeshData, read_mesh
 from vfit_engine.units import LENGTH_UNITS
 
+#: A garment of more than this many pieces, with fewer than SOUP_FACES_PER_PIECE faces each on average, is
+#: probably a triangle soup (an export that did not share vertices between faces): a warning says so.
+SOUP_PIECES = 50
+SOUP_FACES_PER_PIECE = 4
 #: Largest coordinate a garment file may hold, in its own units (1 km in mm): beyond it a file is not a
 #: garment (coordinates of 1e155 overflowed the k-d trees with a traceback).
 MAX_COORDINATE = 1e6
@@ -258,6 +262,10 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
     if not used.all():
         warnings.append(f"{int((~used).sum())} vertices are not used by any face (kept, they stay free)")
     pieces = piece_labels(mesh.n_verts, mesh.edges())
+    n_pieces = int(pieces.max()) + 1 if pieces.size else 0
+    if n_pieces > SOUP_PIECES and n_pieces * SOUP_FACES_PER_PIECE > mesh.n_faces:
+        warnings.append(f"{n_pieces} unconnected pieces for {mesh.n_faces} faces: a triangle soup (faces that share "
+                        "no vertices)? Each piece drapes and is pinned on its own; weld the coincident vertices")
     return Garment(
         mesh=mesh,
         units=units,
