@@ -1,10 +1,14 @@
 """``vfit drape``: drape a garment on a body (the default one, a file, or one built to measurements)."""
+import contextlib
 import copy
+import signal
+from types import SimpleNamespace
 
 import click
 
 from . import morph as _morph
 from ._common import check_output_path, handle_errors, write_json
+from ._outdir import OutdirLock, check_outdir, clear_outputs
 
 #: Garment transfer methods (``vfit_engine.garment.transfer.METHODS``; listed here so --help imports no numpy).
 TRANSFER_METHODS = ("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none")
@@ -106,10 +110,60 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
         raise InputError("give either --body or measurement options, not both")
     if not os.path.isfile(garment):
         raise InputError(f"garment file not found: {garment}")
-    _check_outdir(outdir)
+    check_outdir(outdir)
     if json_path:
         check_output_path(json_path, (".json",))
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
+    opts = SimpleNamespace(garment=garment, body_path=body_path, material=material, rest=rest, transfer=transfer,
+                           collider=collider, pin=pin, units=units, frames=frames, every=every, fmt=fmt,
+                           preview=preview, outdir=outdir, json_path=json_path, quiet=quiet,
+                           gender=gender if gender_given else None, weight=weight, definition=definition,
+                           targets=targets, t_start=t_start)
+    stop = _Stop()
+    try:
+        with OutdirLock(outdir), stop.catching_sigterm():
+            code = _drape(opts, stop)
+    except KeyboardInterrupt:  # during the set-up (the frame loop reports its own)
+        stop.interrupted()
+        click.echo(f"Error: interrupted by {stop.signal} before the drape started; nothing written", err=True)
+        code = stop.exit_code
+    if code:
+        ctx.exit(code)
+
+
+class _Stop:
+    """How a run was interrupted: Ctrl-C (SIGINT, exit 130) or SIGTERM (exit 143, raised as KeyboardInterrupt
+    by :meth:`catching_sigterm` so both end the run the same way)."""
+
+    def __init__(self):
+        self.signal, self.exit_code = None, 0
+
+    def interrupted(self):
+        if self.signal is None:
+            self.signal, self.exit_code = "SIGINT", 130
+
+    @contextlib.contextmanager
+    def catching_sigterm(self):
+        def on_term(signum, frame):
+            self.signal, self.exit_code = "SIGTERM", 143
+            raise KeyboardInterrupt
+
+        try:
+            old = signal.signal(signal.SIGTERM, on_term)
+        except ValueError:  # not the main thread: leave signals alone
+            old = None
+        try:
+            yield self
+        finally:
+            if old is not None:
+                signal.signal(signal.SIGTERM, old)
+
+
+def _drape(o, stop):
+    """The drape command's work inside its held OUTDIR (``o``: the options); returns the exit code (0, 3 not
+    settled, 130 / 143 interrupted)."""
+    import os
+    import time
 
     from vfit_engine.body.model import BodyModel
     from vfit_engine.body.resolve import resolve_body
@@ -118,85 +172,103 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.pins import read_pin_file
 
-    g = load_garment(garment, units=units)
-    pins = pin if pin in ("auto", "none") else read_pin_file(pin, g.mesh.n_verts)
+    g = load_garment(o.garment, units=o.units)
+    pins = o.pin if o.pin in ("auto", "none") else read_pin_file(o.pin, g.mesh.n_verts)
     model = BodyModel.load()
     tag_gender = garment_gender(g)
     for w in g.warnings:
-        click.echo(f"Warning: {garment}: {w}", err=True)
-    body = resolve_body(model, body_path, targets, weight, gender if gender_given else (tag_gender or "female"),
-                        definition)
-    settings = DrapeSettings() if frames is None else DrapeSettings(max_frames=frames)
-    setup = prepare_drape(g, body, model, material=material, pin=pins, transfer=transfer, rest=rest,
-                          collider=collider, settings=settings)
+        click.echo(f"Warning: {o.garment}: {w}", err=True)
+    body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or tag_gender or "female", o.definition)
+    settings = DrapeSettings() if o.frames is None else DrapeSettings(max_frames=o.frames)
+    setup = prepare_drape(g, body, model, material=o.material, pin=pins, transfer=o.transfer, rest=o.rest,
+                          collider=o.collider, settings=settings)
     for w in setup.pins.info.get("warnings", []):
-        click.echo(f"Warning: {garment}: {w}", err=True)
-    _clear_outputs(outdir)
-    context = dict(garment=garment, garment_units=g.units, garment_vertices=g.mesh.n_verts, garment_gender=tag_gender,
-                   warnings=list(g.warnings), body=body.description)
-    result, written = _simulate(setup, settings, model, outdir, fmt, every, quiet, context, json_path)
-    report = _finish(setup, result, model, outdir, fmt, preview, written, context, time.perf_counter() - t_start)
-    write_json(os.path.join(outdir, "report.json"), report)
-    if json_path:
-        write_json(json_path, report)
-    if not quiet:
+        click.echo(f"Warning: {o.garment}: {w}", err=True)
+    clear_outputs(o.outdir, OUTPUT_GLOBS)
+    context = dict(garment=o.garment, garment_units=g.units, garment_vertices=g.mesh.n_verts,
+                   garment_gender=tag_gender, warnings=list(g.warnings), body=body.description)
+    result, written = _simulate(setup, settings, o, context, stop)
+    if result is None:
+        return stop.exit_code
+    report = _finish(setup, result, model, o.outdir, o.fmt, o.preview, written, context,
+                     time.perf_counter() - o.t_start)
+    write_json(os.path.join(o.outdir, "report.json"), report)
+    if o.json_path:
+        write_json(o.json_path, report)
+    if not o.quiet:
         _summary(g, setup, result, report)
-        click.echo(f"wrote {', '.join(written + [os.path.join(outdir, 'report.json')])}")
-    if not result.converged:
-        drop = float(setup.start[:, 1].mean() - result.pos[:, 1].mean())
-        if setup.pins.indices.size == 0 and drop > FELL_M:
-            # unpinned, it slides down the body (or falls off it): say so, not only that it kept moving
-            click.echo(f"Error: the garment slid {100 * drop:.0f} cm down the body in {result.frames} frames and did "
-                       "not stop: nothing holds it up without pins; use --pin auto or a pin file", err=True)
-            ctx.exit(3)
-        click.echo(f"Error: the cloth did not settle within {settings.max_frames} frames: {report['settle']['test']} "
-                   f"failed (last frame: {100 * result.settle['share_moving']:.2f} % of the vertices moved more "
-                   f"than {1000 * settings.settle_step:g} mm, the fastest {result.settle['max_step_mm']:.2f} mm)",
-                   err=True)
-        ctx.exit(3)
+        click.echo(f"wrote {', '.join(written + [os.path.join(o.outdir, 'report.json')])}")
+    return 0 if result.converged else _unsettled(setup, result, settings, report)
 
 
-def _simulate(setup, settings, model, outdir, fmt, every, quiet, context, json_path):
-    """Run the drape with frames and a progress bar; on divergence write what is known and re-raise."""
+def _unsettled(setup, result, settings, report):
+    """The exit-3 error line of a drape that did not settle; returns 3."""
+    drop = float(setup.start[:, 1].mean() - result.pos[:, 1].mean())
+    if setup.pins.indices.size == 0 and drop > FELL_M:
+        # unpinned, it slides down the body (or falls off it): say so, not only that it kept moving
+        click.echo(f"Error: the garment slid {100 * drop:.0f} cm down the body in {result.frames} frames and did "
+                   "not stop: nothing holds it up without pins; use --pin auto or a pin file", err=True)
+        return 3
+    click.echo(f"Error: the cloth did not settle within {settings.max_frames} frames: {report['settle']['test']} "
+               f"failed (last frame: {100 * result.settle['share_moving']:.2f} % of the vertices moved more "
+               f"than {1000 * settings.settle_step:g} mm, the fastest {result.settle['max_step_mm']:.2f} mm)", err=True)
+    return 3
+
+
+def _simulate(setup, settings, o, context, stop):
+    """Run the drape with frames and a progress bar; returns (result, written files).
+
+    On divergence the last good frame and a report are written and DrapeDiverged re-raised; on Ctrl-C or
+    SIGTERM the frames so far stay, a report marked ``interrupted`` is written, and the result is None.
+    """
     import os
     import sys
 
     from vfit_engine.drape import DrapeDiverged, drape_report, run_drape
 
-    written = []
+    written, done = [], [0]
 
     def save(name, verts):
-        path = os.path.join(outdir, f"{name}.{fmt}")
+        path = os.path.join(o.outdir, f"{name}.{o.fmt}")
         _write_garment(path, setup, verts, context)
         written.append(path)
 
+    def report(**what):
+        rep = drape_report(setup, outputs=written, **what, **context)
+        write_json(os.path.join(o.outdir, "report.json"), rep)
+        if o.json_path:
+            write_json(o.json_path, rep)
+
     bar = None
-    if not quiet and sys.stderr.isatty():
+    if not o.quiet and sys.stderr.isatty():
         bar = click.progressbar(length=settings.max_frames, label="draping", file=sys.stderr)
         bar.__enter__()
 
     def on_frame(frame, pos):
-        if every and frame % every == 0:
+        done[0] = frame
+        if o.every and frame % o.every == 0:
             save(f"frame_{frame:04d}", pos)
         if bar is not None:
             bar.update(1)
 
-    if every:
-        save("frame_0000", setup.start)
     try:
-        result = run_drape(setup, settings, on_frame=on_frame)
+        if o.every:
+            save("frame_0000", setup.start)
+        return run_drape(setup, settings, on_frame=on_frame), written
     except DrapeDiverged as exc:
         if exc.last_good is not None:
             save(f"frame_{exc.last_good_frame:04d}", exc.last_good)
-        report = drape_report(setup, diverged=exc, outputs=written, **context)
-        write_json(os.path.join(outdir, "report.json"), report)
-        if json_path:
-            write_json(json_path, report)
+        report(diverged=exc)
         raise
+    except KeyboardInterrupt:
+        stop.interrupted()
+        report(interrupted=dict(signal=stop.signal, frames=done[0]))
+        click.echo(f"Error: interrupted by {stop.signal} after {done[0]} frames; kept "
+                   f"{len(written)} frame file(s) and report.json in {o.outdir}", err=True)
+        return None, written
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
-    return result, written
 
 
 def _finish(setup, result, model, outdir, fmt, preview, written, context, elapsed):
@@ -255,36 +327,3 @@ def _summary(g, setup, result, report):
         click.echo(f"  tight: the opening of {o['vertices']} vertices at ({x:.1f}, {y:.1f}, {z:.1f}) cm is "
                    f"{o['rest_length_mm'] / 10:.1f} cm round, the body under it {o['body_tape_mm'] / 10:.1f} cm: "
                    f"it must stretch >= {100 * o['required_strain']:.1f} %")
-
-
-def _check_outdir(outdir):
-    """Fail early, before any long computation, on an OUTDIR that cannot be written."""
-    import os
-
-    from vfit_engine.errors import InputError
-
-    if os.path.exists(outdir) and not os.path.isdir(outdir):
-        raise InputError(f"cannot write to {outdir}: not a directory")
-    existing = os.path.abspath(outdir)
-    while not os.path.exists(existing):  # created later with its parents: the nearest existing one decides
-        existing = os.path.dirname(existing)
-    if not os.path.isdir(existing):
-        raise InputError(f"cannot create {outdir}: {existing} is not a directory")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise InputError(f"cannot write to {outdir}: permission denied")
-
-
-def _clear_outputs(outdir):
-    """Create OUTDIR (after the set-up succeeded) and remove an earlier run's outputs from it."""
-    import glob
-    import os
-
-    from vfit_engine.errors import InputError
-
-    try:
-        os.makedirs(outdir, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create output directory {outdir}: {exc.strerror or exc}") from None
-    for pattern in OUTPUT_GLOBS:
-        for path in glob.glob(os.path.join(outdir, pattern)):
-            os.remove(path)

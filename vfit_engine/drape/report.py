@@ -44,7 +44,7 @@ def openings_table(openings):
     return [{k: v for k, v in o.items() if k != "indices"} for o in openings or ()]
 
 
-def drape_report(setup=None, result=None, diverged=None, **context):
+def drape_report(setup=None, result=None, diverged=None, interrupted=None, **context):
     """A JSON-ready dict for ``report.json``.
 
     Parameters
@@ -53,6 +53,8 @@ def drape_report(setup=None, result=None, diverged=None, **context):
     result : DrapeResult or None
         None when the drape diverged (then ``diverged`` is the DrapeDiverged).
     diverged : DrapeDiverged or None
+    interrupted : dict or None
+        ``signal`` and ``frames`` of a run stopped by Ctrl-C or SIGTERM (then ``result`` is None).
     **context
         Extra keys written as given (garment, body, material, outputs ...).
 
@@ -74,6 +76,10 @@ def drape_report(setup=None, result=None, diverged=None, **context):
     if diverged is not None:
         out.update(diverged=True, converged=False, message=str(diverged), frames=diverged.frame,
                    last_good_frame=diverged.last_good_frame)
+        return _clean(out)
+    if interrupted is not None:
+        out.update(interrupted=True, diverged=False, converged=False, signal=interrupted["signal"],
+                   frames=interrupted["frames"])
         return _clean(out)
     m = dict(result.metrics)
     out.update(

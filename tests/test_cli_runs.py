@@ -1,0 +1,81 @@
+"""``vfit drape`` runs that end early or collide: Ctrl-C and SIGTERM, two runs into one OUTDIR, a stale lock."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from click.testing import CliRunner
+
+from test_drape import DEMO_SKIRT
+from vfit_cli.main import cli
+
+
+def _long_drape(outdir):
+    """A drape that does not settle for ~10 s (an unpinned skirt slides down), writing every frame."""
+    code = "from vfit_cli.main import cli; cli()"
+    return subprocess.Popen([sys.executable, "-c", code, "drape", str(DEMO_SKIRT), "-o", str(outdir), "--pin", "none",
+                             "--every", "1", "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(path, proc, timeout=240.0):
+    """Until ``path`` exists (the first run in a fresh checkout compiles the kernels first)."""
+    t0 = time.monotonic()
+    while not path.exists():
+        if proc.poll() is not None:
+            raise AssertionError(f"the drape ended first: {proc.returncode} {proc.communicate()}")
+        if time.monotonic() - t0 > timeout:
+            proc.kill()
+            raise AssertionError("no frame written in time")
+        time.sleep(0.05)
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_interrupted_drape_keeps_its_frames_and_says_so(tmp_path, sig, code):
+    out = tmp_path / "o"
+    proc = _long_drape(out)
+    _wait_for(out / "frame_0002.obj", proc)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, err
+    lines = [ln for ln in err.splitlines() if ln.startswith("Error")]
+    assert len(lines) == 1 and "interrupted by " + signal.Signals(sig).name in lines[0] and "Traceback" not in err
+    report = json.loads((out / "report.json").read_text())
+    assert report["interrupted"] is True and report["signal"] == signal.Signals(sig).name
+    frames = sorted(p.name for p in out.glob("frame_*.obj"))
+    assert report["frames"] >= 2 and "frame_0002.obj" in frames
+    assert set(report["outputs"]) >= {str(out / f) for f in frames}
+    # no final mesh of an unfinished drape, no temporary file, the lock released
+    assert not (out / "final.obj").exists() and not list(out.glob(".*tmp*")) and not (out / ".vfit.lock").exists()
+
+
+def test_a_second_run_into_a_held_outdir_exits_2_at_once(tmp_path):
+    out = tmp_path / "o"
+    first = _long_drape(out)
+    try:
+        _wait_for(out / "frame_0001.obj", first)
+        t0 = time.monotonic()
+        r = CliRunner().invoke(cli, ["drape", str(DEMO_SKIRT), "-o", str(out), "--every", "0", "--quiet"])
+        assert r.exit_code == 2 and f"in use by another vfit run (pid {first.pid})" in r.output, r.output
+        assert time.monotonic() - t0 < 5.0  # before loading anything
+    finally:
+        first.send_signal(signal.SIGTERM)
+        first.communicate(timeout=60)
+    assert first.returncode == 143 and not (out / ".vfit.lock").exists()
+
+
+def test_a_stale_lock_is_taken_over_and_early_errors_leave_no_outdir(tmp_path):
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / ".vfit.lock").write_text(f"{gone.pid}\n")  # a run that was killed
+    r = CliRunner().invoke(cli, ["drape", str(DEMO_SKIRT), "-o", str(out), "--frames", "2", "--every", "0", "--quiet"])
+    assert r.exit_code == 3 and (out / "final.obj").exists() and not (out / ".vfit.lock").exists(), r.output
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\nv 0 0 0\nf 1 2 3\nf 1 3 2\n")
+    fresh = tmp_path / "fresh"
+    r = CliRunner().invoke(cli, ["drape", str(bad), "-o", str(fresh)])
+    assert r.exit_code == 2 and not fresh.exists() and not os.path.exists(str(fresh) + ".vfit.lock")
