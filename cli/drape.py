@@ -169,10 +169,16 @@ def _drape(o, stop):
     from vfit_engine.body.resolve import resolve_body
     from vfit_engine.drape import DrapeSettings, prepare_drape
     from vfit_engine.drape.setup import garment_gender
+    from vfit_engine.errors import InputError
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.pins import read_pin_file
 
     g = load_garment(o.garment, units=o.units)
+    sizes = g.mesh.face_sizes()
+    if o.fmt == "ply" and sizes.size and sizes.max() > 255:  # found now, not when the first frame is written
+        big = int(sizes.argmax())
+        raise InputError(f"{o.garment}: face {big + 1} has {int(sizes[big])} vertices, more than a PLY face holds "
+                         "(255): use --format obj or split the face")
     pins = o.pin if o.pin in ("auto", "none") else read_pin_file(o.pin, g.mesh.n_verts)
     model = BodyModel.load()
     tag_gender = garment_gender(g)

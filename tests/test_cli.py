@@ -2,12 +2,15 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from vfit_cli.main import cli
+
+DEMO_SKIRT = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
 
 
 def run(*args):
@@ -127,6 +130,20 @@ def test_measure_reads_a_body_with_a_byte_order_mark(tmp_path, body_model):
     assert a.exit_code == b.exit_code == 0, b.output
     values = [json.loads((tmp_path / f"{k}.json").read_text())["values"] for k in "ab"]
     assert values[0] == values[1]
+
+
+def test_a_flat_body_is_named_as_such(tmp_path, body_model):
+    """A body flattened to one height: 'not a body mesh' (it asked for --units, which vfit drape uses for the
+    garment), from measure and from drape --body."""
+    from vfit_engine.body.bodyio import write_body
+
+    verts = body_model.default_verts("female").copy()
+    verts[:, 1] = 0.0
+    write_body(tmp_path / "flat.obj", body_model, verts)
+    for args in (["measure", tmp_path / "flat.obj"],
+                 ["drape", DEMO_SKIRT, "--body", tmp_path / "flat.obj", "-o", tmp_path / "o"]):
+        r = CliRunner().invoke(cli, [str(a) for a in args])
+        assert r.exit_code == 2 and "flat" in r.output and "--units" not in r.output, r.output
 
 
 def test_measure_bad_inputs(tmp_path):

@@ -237,6 +237,22 @@ def test_absurd_coordinates_and_coincident_vertices_exit_2(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_face_too_big_for_ply_is_refused_before_the_drape(tmp_path):
+    """A 300-gon with --format ply: refused at once naming the file, the face and the fix (it failed at the
+    first mesh written, naming nothing); the same garment in OBJ is fine to write."""
+    n = 300
+    a = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    ring = np.stack([0.2 * np.cos(a), np.full(n, 0.1), 0.2 * np.sin(a)], axis=1)
+    lines = [f"v {x} {y} {z}" for x, y, z in np.concatenate([ring, ring - [0.0, 0.4, 0.0]])]
+    lines.append("f " + " ".join(str(k + 1) for k in range(n)))
+    lines += [f"f {k + 1} {(k + 1) % n + 1} {(k + 1) % n + 1 + n} {k + 1 + n}" for k in range(n)]
+    path = tmp_path / "cap.obj"
+    path.write_text("\n".join(lines) + "\n")
+    line = one_line_error(run(path, "-o", tmp_path / "o", "--format", "ply", "--units", "m"), 2)
+    assert "cap.obj" in line and "face 1 has 300 vertices" in line and "--format obj" in line
+    assert not (tmp_path / "o").exists()
+
+
 def test_unpinned_skirt_that_slides_down_is_named(tmp_path):
     """``--pin none`` on a skirt: nothing holds it up and it slides down the legs; the error says so (it only
     said that the cloth kept moving), and a pinned drape cut short keeps the plain message."""

@@ -58,6 +58,8 @@ def read_body(path, model: BodyModel, units: str = "auto") -> tuple[np.ndarray, 
         raise InputError(f"{path}: not hm08 body topology ({missing} of the body's edges are missing)")
     verts = mesh.verts[:N_BODY]
     height = float(np.ptp(verts[:, 1]))
+    if not height > 0:  # (guessing its units would ask for --units, which vfit drape uses for the garment)
+        raise InputError(f"{path}: the body is flat (all its vertices at one height): not a body mesh")
     if units == "auto":
         units = guess_length_unit(height, expected_m=1.65)
     elif units not in LENGTH_UNITS:

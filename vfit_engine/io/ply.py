@@ -241,7 +241,9 @@ def write_ply(path, mesh, header=None, colors=None, binary=True):
         colors = colors.astype(np.uint8)
     sizes = mesh.face_sizes()
     if sizes.size and sizes.max() > 255:
-        raise InputError("a face has more than 255 vertices; PLY 'list uchar' cannot hold it")
+        big = int(np.argmax(sizes))
+        raise InputError(f"cannot write {path}: face {big + 1} has {int(sizes[big])} vertices, more than a PLY face "
+                         "holds (255): write OBJ instead")
     lines = ["ply", "format " + ("binary_little_endian" if binary else "ascii") + " 1.0"]
     if header:
         for h in [header] if isinstance(header, str) else header:
