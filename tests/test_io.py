@@ -52,6 +52,29 @@ def test_obj_round_trip_keeps_everything(tmp_path):
     assert p.read_bytes() == p2.read_bytes()
 
 
+def test_obj_carries_vertex_normals_and_the_input_names(tmp_path):
+    """Written OBJs have a unit ``vn`` per vertex (area-weighted, following the faces' winding) that every
+    face corner references, beside the input's o/g names."""
+    from vfit_engine.geometry import vertex_normals
+
+    m = _mixed_mesh()
+    p = tmp_path / "n.obj"
+    write_obj(p, m)
+    lines = p.read_text().splitlines()
+    vn = np.array([[float(t) for t in ln.split()[1:]] for ln in lines if ln.startswith("vn ")])
+    assert vn.shape == (m.n_verts, 3)
+    np.testing.assert_allclose(vn, vertex_normals(m.verts, m.face_verts, m.face_offsets), atol=1e-8)
+    used = np.unique(m.face_verts)
+    np.testing.assert_allclose(np.linalg.norm(vn[used], axis=1), 1.0, atol=1e-8)
+    for ln in (ln for ln in lines if ln.startswith("f ")):
+        for corner in ln.split()[1:]:
+            v, _, n = corner.split("/")
+            assert v == n
+    assert any(ln.startswith("g ") for ln in lines) and any(ln.startswith("o ") for ln in lines)
+    write_obj(tmp_path / "plain.obj", m, normals=False)
+    assert "vn" not in (tmp_path / "plain.obj").read_text()
+
+
 def test_obj_round_trip_random_floats_within_print_precision(tmp_path):
     rng = np.random.default_rng(1)
     verts = rng.normal(scale=0.5, size=(50, 3))

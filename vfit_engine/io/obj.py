@@ -280,8 +280,9 @@ def read_obj(path, max_verts=MAX_VERTS):
     )
 
 
-def _face_lines(mesh, lo, hi):
-    """Text of faces lo..hi-1 (1-based indices, ``v/vt`` where every corner of a face has a vt)."""
+def _face_lines(mesh, lo, hi, normals=False):
+    """Text of faces lo..hi-1 (1-based indices, ``v/vt`` where every corner of a face has a vt; with
+    ``normals`` ``v/vt/vn`` and ``v//vn``, the normal of a vertex having its index)."""
     o = mesh.face_offsets
     fv = mesh.face_verts[o[lo]:o[hi]] + 1
     sizes = np.diff(o[lo:hi + 1])
@@ -297,21 +298,23 @@ def _face_lines(mesh, lo, hi):
     if np.all(sizes == s) and (face_has_uv.all() or not face_has_uv.any()):
         # uniform block: one printf template for all faces
         if face_has_uv.all():
-            vals = np.stack([fv, fu + 1], axis=1).ravel()
-            template = "f" + " %d/%d" * s + "\n"
+            vals = np.stack([fv, fu + 1] + [fv] * normals, axis=1).ravel()
+            template = "f" + (" %d/%d/%d" if normals else " %d/%d") * s + "\n"
         else:
-            vals = fv
-            template = "f" + " %d" * s + "\n"
+            vals = np.stack([fv] * (1 + normals), axis=1).ravel()
+            template = "f" + (" %d//%d" if normals else " %d") * s + "\n"
         return (template * (hi - lo)) % tuple(vals.tolist())
     out = []
     rel = o[lo:hi + 1] - o[lo]
     for i in range(hi - lo):
         a, b = rel[i], rel[i + 1]
+        n = "/{}" if normals else ""
         if face_has_uv[i]:
             corners = zip(fv[a:b].tolist(), fu[a:b].tolist())
-            out.append("f " + " ".join(f"{x}/{t + 1}" for x, t in corners) + "\n")
+            out.append("f " + " ".join(f"{x}/{t + 1}" + n.format(x) for x, t in corners) + "\n")
         else:
-            out.append("f " + " ".join(map(str, fv[a:b].tolist())) + "\n")
+            out.append("f " + " ".join(f"{x}/" + n.format(x) if normals else str(x) for x in fv[a:b].tolist())
+                       + "\n")
     return "".join(out)
 
 
@@ -321,7 +324,7 @@ def _floats_block(prefix, arr):
     return (template * arr.shape[0]) % tuple(arr.ravel().tolist())
 
 
-def format_obj(mesh, header=None, mtllib=True):
+def format_obj(mesh, header=None, mtllib=True, normals=True):
     """The OBJ text of ``mesh`` (see ``write_obj``)."""
     parts = []
     if header:
@@ -336,6 +339,11 @@ def format_obj(mesh, header=None, mtllib=True):
     parts.append(_floats_block("v", verts))
     if mesh.uvs is not None and len(mesh.uvs):
         parts.append(_floats_block("vt", np.asarray(mesh.uvs, dtype=np.float64)))
+    normals = bool(normals and mesh.n_faces)
+    if normals:
+        from vfit_engine.geometry import vertex_normals
+
+        parts.append(_floats_block("vn", vertex_normals(verts, mesh.face_verts, mesh.face_offsets)))
     events = sorted(
         [(first, 0, f"o {name}\n") for name, first in mesh.objects]
         + [(first, 1, f"g {name}\n") for name, first in mesh.groups]
@@ -345,15 +353,16 @@ def format_obj(mesh, header=None, mtllib=True):
     lo = 0
     for first, _, line in events:
         first = min(max(int(first), lo), mesh.n_faces)
-        parts.append(_face_lines(mesh, lo, first))
+        parts.append(_face_lines(mesh, lo, first, normals))
         parts.append(line)
         lo = first
-    parts.append(_face_lines(mesh, lo, mesh.n_faces))
+    parts.append(_face_lines(mesh, lo, mesh.n_faces, normals))
     return "".join(parts)
 
 
-def write_obj(path, mesh, header=None, mtllib=True):
-    """Write ``mesh`` as OBJ atomically: ``v`` (``%.9g``), ``vt``, ``f v/vt``, o/g/usemtl.
+def write_obj(path, mesh, header=None, mtllib=True, normals=True):
+    """Write ``mesh`` as OBJ atomically: ``v`` (``%.9g``), ``vt``, ``vn`` (area-weighted vertex normals, one
+    per vertex: viewers shade it smooth), ``f v/vt/vn``, and the input's o/g/usemtl names.
 
     Parameters
     ----------
@@ -363,7 +372,9 @@ def write_obj(path, mesh, header=None, mtllib=True):
         Comment lines at the top.
     mtllib : bool
         Pass ``mesh.mtllib`` through as an ``mtllib`` line (the .mtl itself is not copied).
+    normals : bool
+        Write ``vn`` lines and reference them from the faces.
     """
-    text = format_obj(mesh, header=header, mtllib=mtllib)
+    text = format_obj(mesh, header=header, mtllib=mtllib, normals=normals)
     with atomic_write(path, "w") as f:
         f.write(text)
