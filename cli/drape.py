@@ -9,6 +9,7 @@ import click
 from . import morph as _morph
 from ._common import check_output_path, handle_errors, write_json
 from ._outdir import OutdirLock, check_outdir, clear_outputs
+from ._progress import Progress, kernels_cached
 
 #: Garment transfer methods (``vfit_engine.garment.transfer.METHODS``; listed here so --help imports no numpy).
 TRANSFER_METHODS = ("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none")
@@ -173,6 +174,8 @@ def _drape(o, stop):
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.pins import read_pin_file
 
+    progress = o.progress = Progress(o.quiet)
+    progress.stage(f"reading {os.path.basename(o.garment)}")
     g = load_garment(o.garment, units=o.units)
     sizes = g.mesh.face_sizes()
     if o.fmt == "ply" and sizes.size and sizes.max() > 255:  # found now, not when the first frame is written
@@ -184,8 +187,12 @@ def _drape(o, stop):
     tag_gender = garment_gender(g)
     for w in g.warnings:
         click.echo(f"Warning: {o.garment}: {w}", err=True)
+    progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
+                   f"reading the body {o.body_path}" if o.body_path else "loading the default body")
     body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or tag_gender or "female", o.definition)
     settings = DrapeSettings() if o.frames is None else DrapeSettings(max_frames=o.frames)
+    progress.stage("placing the garment, pinning it, building the body's collision grid"
+                   + ("" if kernels_cached() else "; the first run compiles the cloth kernels (about a minute)"))
     setup = prepare_drape(g, body, model, material=o.material, pin=pins, transfer=o.transfer, rest=o.rest,
                           collider=o.collider, settings=settings)
     for w in setup.pins.info.get("warnings", []):
@@ -222,13 +229,12 @@ def _unsettled(setup, result, settings, report):
 
 
 def _simulate(setup, settings, o, context, stop):
-    """Run the drape with frames and a progress bar; returns (result, written files).
+    """Run the drape, writing frames and its progress; returns (result, written files).
 
     On divergence the last good frame and a report are written and DrapeDiverged re-raised; on Ctrl-C or
     SIGTERM the frames so far stay, a report marked ``interrupted`` is written, and the result is None.
     """
     import os
-    import sys
 
     from vfit_engine.drape import DrapeDiverged, drape_report, run_drape
 
@@ -245,17 +251,13 @@ def _simulate(setup, settings, o, context, stop):
         if o.json_path:
             write_json(o.json_path, rep)
 
-    bar = None
-    if not o.quiet and sys.stderr.isatty():
-        bar = click.progressbar(length=settings.max_frames, label="draping", file=sys.stderr)
-        bar.__enter__()
+    o.progress.stage(f"settling (up to {settings.max_frames} frames; it ends when the cloth stops moving)")
 
     def on_frame(frame, pos):
         done[0] = frame
         if o.every and frame % o.every == 0:
             save(f"frame_{frame:04d}", pos)
-        if bar is not None:
-            bar.update(1)
+        o.progress.frame(frame, pos, settings.max_frames, settings.settle_step)
 
     try:
         if o.every:
@@ -273,8 +275,7 @@ def _simulate(setup, settings, o, context, stop):
                    f"{len(written)} frame file(s) and report.json in {o.outdir}", err=True)
         return None, written
     finally:
-        if bar is not None:
-            bar.__exit__(None, None, None)
+        o.progress.done()
 
 
 def _finish(setup, result, model, outdir, fmt, preview, written, context, elapsed):
