@@ -79,3 +79,37 @@ def test_a_stale_lock_is_taken_over_and_early_errors_leave_no_outdir(tmp_path):
     fresh = tmp_path / "fresh"
     r = CliRunner().invoke(cli, ["drape", str(bad), "-o", str(fresh)])
     assert r.exit_code == 2 and not fresh.exists() and not os.path.exists(str(fresh) + ".vfit.lock")
+
+
+def test_an_unwritable_json_path_stops_every_command_before_it_writes(tmp_path, body_model):
+    """--json into a missing directory: exit 2 before anything is written (drape, morph, segment)."""
+    from vfit_engine.body.bodyio import write_body
+
+    bad = str(tmp_path / "missing" / "r.json")
+    r = CliRunner().invoke(cli, ["drape", str(DEMO_SKIRT), "-o", str(tmp_path / "o"), "--json", bad])
+    assert r.exit_code == 2 and "does not exist" in r.output and not (tmp_path / "o").exists()
+    r = CliRunner().invoke(cli, ["morph", "--waist", "70", "-o", str(tmp_path / "b.obj"), "--json", bad])
+    assert r.exit_code == 2 and not (tmp_path / "b.obj").exists()
+    write_body(tmp_path / "body.obj", body_model, body_model.default_verts("female"))
+    r = CliRunner().invoke(cli, ["segment", str(tmp_path / "body.obj"), "-o", str(tmp_path / "p.ply"), "--json", bad])
+    assert r.exit_code == 2 and not (tmp_path / "p.ply").exists()
+
+
+def test_a_garment_far_from_the_body_without_a_binding_exits_2(tmp_path):
+    """The demo skirt (no .mhclo) 10 m and 100 km away: refused, naming the distance (it used to drape in the
+    air, held by the pins of its top band); 1,000 km is beyond any coordinate a garment file may hold."""
+    text = DEMO_SKIRT.read_text().splitlines()
+    for dx, name in ((10.0, "far.obj"), (1e5, "farther.obj"), (1e6, "farthest.obj")):
+        moved = []
+        for line in text:
+            if line.startswith("v "):
+                x, y, z = (float(t) for t in line.split()[1:4])
+                line = f"v {x + dx} {y} {z}"
+            moved.append(line)
+        path = tmp_path / name
+        path.write_text("\n".join(moved) + "\n")
+        r = CliRunner().invoke(cli, ["drape", str(path), "-o", str(tmp_path / "o"), "--units", "m"])
+        errors = [ln for ln in r.output.splitlines() if ln.startswith("Error")]
+        assert r.exit_code == 2 and len(errors) == 1, r.output
+        assert ("from the body" in errors[0] and ".mhclo" in errors[0]) if dx < 1e6 else "beyond" in errors[0]
+        assert not (tmp_path / "o").exists()
