@@ -14,7 +14,7 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip setuptools wheel
 
 $(STAMP): $(BIN)/python pyproject.toml
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install -qq -e '.[test]'  # -qq: errors only (setuptools' informational note on editable installs is not a warning about vfit)
 	rm -f $(VENV)/.installed-* && touch $(STAMP)
 
 install: $(STAMP)
