@@ -117,6 +117,10 @@ def test_measure_makehuman_units(tmp_path, body_model):
     assert r.exit_code == 2 and "not a human body" in r.output and "--units dm" in r.output, r.output
     assert run("measure", tmp_path / "m.obj", "--units", "cm").exit_code == 2  # 1.7 cm tall
     assert run("measure", tmp_path / "dm.obj", "--units", "dm").exit_code == 0
+    with np.errstate(over="ignore"):  # (its vertex normals overflow on the way out)
+        write_body(tmp_path / "huge.obj", body_model, verts * 1e100)  # no unit makes it a body
+    r = run("measure", tmp_path / "huge.obj")
+    assert r.exit_code == 2 and "not a human body in any unit" in r.output, r.output
 
 
 def test_measure_reads_a_body_with_a_byte_order_mark(tmp_path, body_model):

@@ -60,14 +60,18 @@ def read_body(path, model: BodyModel, units: str = "auto") -> tuple[np.ndarray, 
     height = float(np.ptp(verts[:, 1]))
     if not height > 0:  # (guessing its units would ask for --units, which vfit drape uses for the garment)
         raise InputError(f"{path}: the body is flat (all its vertices at one height): not a body mesh")
+    guess = guess_length_unit(height, expected_m=1.65)
+    lo, hi = BODY_HEIGHT_RANGE_M
     if units == "auto":
-        units = guess_length_unit(height, expected_m=1.65)
+        units = guess
+        if not lo <= height * LENGTH_UNITS[units] <= hi:
+            raise InputError(f"{path}: the body is {height:.3g} file units tall, not a human body in any unit "
+                             f"({lo:g}-{hi:g} m)")
     elif units not in LENGTH_UNITS:
         raise InputError(f"unknown units {units!r}; use one of auto, {', '.join(LENGTH_UNITS)}")
-    elif not BODY_HEIGHT_RANGE_M[0] <= height * LENGTH_UNITS[units] <= BODY_HEIGHT_RANGE_M[1]:
+    elif not lo <= height * LENGTH_UNITS[units] <= hi:
         # an explicit unit that makes the body 16 m or 2 cm tall is a mistake, not a choice to honour
         raise InputError(f"{path}: the body is {height * LENGTH_UNITS[units]:.3g} m tall read in {units}, not a "
-                         f"human body ({BODY_HEIGHT_RANGE_M[0]:g}-{BODY_HEIGHT_RANGE_M[1]:g} m); its height says "
-                         f"{guess_length_unit(height, expected_m=1.65)}: give --units "
-                         f"{guess_length_unit(height, expected_m=1.65)} or --units auto")
+                         f"human body ({lo:g}-{hi:g} m); its height says {guess}: give --units {guess} or "
+                         "--units auto")
     return np.ascontiguousarray(verts * LENGTH_UNITS[units]), units
