@@ -4,6 +4,7 @@ Commands are registered explicitly. Their modules import only click at import
 time (numpy, scipy and numba are imported inside the callbacks), so ``vfit
 --help`` and ``vfit COMMAND --help`` answer at once.
 """
+import signal
 import sys
 
 import click
@@ -17,6 +18,16 @@ class OneLineErrors(click.Group):
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
         if not standalone_mode:  # a caller that handles click's exceptions itself
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        terminated = []
+
+        def on_term(signum, frame):  # SIGTERM ends a run like Ctrl-C does, with its own exit code
+            terminated.append(signum)
+            raise KeyboardInterrupt
+
+        try:
+            previous = signal.signal(signal.SIGTERM, on_term)
+        except ValueError:  # not the main thread
+            previous = None
         try:
             rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         except click.UsageError as exc:
@@ -26,9 +37,12 @@ class OneLineErrors(click.Group):
         except click.ClickException as exc:
             exc.show()
             sys.exit(exc.exit_code)
-        except click.Abort:
-            click.echo("Aborted!", err=True)
-            sys.exit(1)
+        except click.Abort:  # (click's form of KeyboardInterrupt)
+            click.echo(f"Error: interrupted by {'SIGTERM' if terminated else 'SIGINT'}", err=True)
+            sys.exit(143 if terminated else 130)
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGTERM, previous)
         sys.exit(rv if isinstance(rv, int) else 0)
 
 
@@ -39,7 +53,8 @@ def cli():
 
     Lengths on the command line are centimetres, masses kilograms; meshes are
     written in metres, Y up. Exit codes: 0 ok, 2 bad input or unreachable
-    target, 3 not converged, 4 simulation diverged.
+    target, 3 not converged, 4 simulation diverged, 130 / 143 interrupted
+    (Ctrl-C / SIGTERM).
     """
 
 

@@ -113,3 +113,22 @@ def test_a_garment_far_from_the_body_without_a_binding_exits_2(tmp_path):
         assert r.exit_code == 2 and len(errors) == 1, r.output
         assert ("from the body" in errors[0] and ".mhclo" in errors[0]) if dx < 1e6 else "beyond" in errors[0]
         assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("how, code, name", [("ctrl-c", 130, "SIGINT"), ("sigterm", 143, "SIGTERM")])
+def test_every_command_exits_130_or_143_when_interrupted(monkeypatch, capsys, how, code, name):
+    """Not click's "Aborted!" and exit 1: 130 for Ctrl-C, 143 for SIGTERM, one line saying which."""
+    import vfit_engine.body.model as model
+
+    def interrupt(*args, **kwargs):
+        if how == "ctrl-c":
+            raise KeyboardInterrupt
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler raises before this ends
+
+    monkeypatch.setattr(model.BodyModel, "load", classmethod(interrupt))
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["morph", "--waist", "70", "-o", "unused.obj"], prog_name="vfit")
+    assert exc.value.code == code
+    err = capsys.readouterr().err
+    assert f"Error: interrupted by {name}" in err and "Aborted" not in err
