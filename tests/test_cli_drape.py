@@ -64,6 +64,10 @@ def test_help():
                 "--json", "--quiet", "--transfer", "--rest", "--preview", "--units"):
         assert opt in r.output
     assert "garment|graded" in r.output.replace(" ", "")
+    # the --frames default the help states is the one the drape uses
+    from vfit_engine.drape import DrapeSettings
+
+    assert f"[default: {DrapeSettings().max_frames}]" in " ".join(r.output.split())
 
 
 def test_vfit_help_does_not_import_numba():
