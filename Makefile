@@ -11,7 +11,7 @@ STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip setuptools wheel
+	$(BIN)/python -m pip install -qq --upgrade pip setuptools wheel
 
 $(STAMP): $(BIN)/python pyproject.toml
 	$(BIN)/python -m pip install -qq -e '.[test]'  # -qq: errors only (setuptools' informational note on editable installs is not a warning about vfit)
