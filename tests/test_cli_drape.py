@@ -176,9 +176,12 @@ def test_divergence_exits_4_without_nan_files(tmp_path, monkeypatch):
 
     monkeypatch.setattr(SolverVerlet, "step_frame", poisoned)
     out = tmp_path / "o"
+    out.mkdir()
+    (out / "final.obj").write_text("# an earlier run's\n")  # must not stay beside a report saying diverged
+    (out / "frame_0031.obj").write_text("# an earlier run's\n")
     r = run(DEMO_SKIRT, "-o", out, "--every", 2, "-q")
     assert "diverged at frame 5" in one_line_error(r, 4)
-    assert not (out / "final.obj").exists()
+    assert not (out / "final.obj").exists() and not (out / "frame_0031.obj").exists()
     assert (out / "frame_0004.obj").is_file()
     for f in out.glob("*.obj"):
         assert "nan" not in f.read_text().lower()
