@@ -134,7 +134,9 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
 
 class _Stop:
     """How a run was interrupted: Ctrl-C (SIGINT, exit 130) or SIGTERM (exit 143, raised as KeyboardInterrupt
-    by :meth:`catching_sigterm` so both end the run the same way)."""
+    by :meth:`catching_sigterm` so both end the run the same way). The ``vfit`` group turns either into its
+    exit code for every command; the drape catches them itself to keep its frames and say in its report
+    which signal stopped it."""
 
     def __init__(self):
         self.signal, self.exit_code = None, 0
