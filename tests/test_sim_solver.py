@@ -601,3 +601,24 @@ def test_untangle_moves_a_sheet_out_of_the_body_within_the_limit():
     strain = np.linalg.norm(out[idx[:, 1]] - out[idx[:, 0]], axis=1) / rest - 1
     assert strain.max() < 0.05 + 1e-9
     assert np.array_equal(pos, garment.vertices)  # the input is not modified
+
+
+@pytest.mark.parametrize("plane", ["xz", "yz", "xy"])
+def test_the_cloth_is_cut_in_two_halves_with_a_short_cut(plane):
+    """A 30 x 30 sheet in any orientation splits into halves of 450 vertices across its width, and only the
+    constraints along the cut (about one row of them) run after the two threads."""
+    from vfit_engine.sim.partition import halves, segment_of, segments
+
+    pos, fv, fo = grid_polygons(30, 30, 1.0, 1.0)  # in the x-z plane
+    if plane == "yz":
+        pos = pos[:, [1, 2, 0]]
+    elif plane == "xy":
+        pos = pos[:, [0, 2, 1]]
+    order, rank, half = halves(pos)
+    assert np.array_equal(rank[order], np.arange(pos.shape[0])) and np.array_equal(np.sort(order), rank[order])
+    assert np.count_nonzero(half == 0) == np.count_nonzero(half == 1) == 450
+    assert np.all(half[order][:450] == 0)  # numbered half by half
+    e = build_springs(fv, fo, pos).indices
+    _, bounds = segments(segment_of(half, e[:, 0], e[:, 1]))
+    across = bounds[3] - bounds[2]
+    assert 0 < across < 0.05 * bounds[3]

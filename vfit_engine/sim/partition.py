@@ -21,7 +21,8 @@ MIN_SPLIT = 256
 
 
 def halves(rest):
-    """Split the vertices at the median of the left-right coordinate (x: the body's left and right).
+    """Split the vertices at the median of the horizontal coordinate of the larger extent: x, the body's
+    left and right, for a garment (wider than deep), z for cloth that hangs in the y-z plane.
 
     A garment is about symmetric and pinned on both sides, so each half holds its own pins and
     the sweeps from them; the cut is short. Ties go by index, so the halves differ by at most one.
@@ -43,8 +44,9 @@ def halves(rest):
     n = rest.shape[0]
     half = np.zeros(n, dtype=np.int8)
     if n >= MIN_SPLIT:
-        by_x = np.argsort(rest[:, 0], kind="stable")
-        half[by_x[n // 2:]] = 1
+        axis = 0 if np.ptp(rest[:, 0]) >= np.ptp(rest[:, 2]) else 2
+        along = np.argsort(rest[:, axis], kind="stable")
+        half[along[n // 2:]] = 1
     order = np.argsort(half, kind="stable").astype(np.int64)
     rank = np.empty(n, dtype=np.int64)
     rank[order] = np.arange(n)
