@@ -58,6 +58,17 @@ class Gender(click.ParamType):
         return x
 
 
+class Terminated(KeyboardInterrupt):
+    """Raised by the ``vfit`` group's SIGTERM handler: a SIGTERM ends a run as Ctrl-C does, and whoever
+    catches KeyboardInterrupt can tell the two apart (exit 143 against 130)."""
+
+
+def interruption(exc):
+    """(signal name, exit code) of a KeyboardInterrupt: SIGTERM (143) if it is a :class:`Terminated`, else
+    SIGINT (130)."""
+    return ("SIGTERM", 143) if isinstance(exc, Terminated) else ("SIGINT", 130)
+
+
 def handle_errors(func):
     """Turn vfit's own errors into one line on stderr and their exit code (2 for bad input)."""
 

@@ -33,7 +33,6 @@ class Progress:
         self.stream = stream or sys.stderr
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.t0 = time.perf_counter()
-        self.prev = None
         self.open_line = False
 
     def stage(self, text):
@@ -42,17 +41,12 @@ class Progress:
             self._end_line()
             click.echo(f"vfit drape: {text} ({time.perf_counter() - self.t0:.1f} s)", file=self.stream)
 
-    def frame(self, frame, pos, max_frames, settle_step):
-        """After frame ``frame``: how much of the cloth moved more than ``settle_step`` (m) in it."""
+    def frame(self, frame, moving, max_frames):
+        """After frame ``frame``: ``moving``, the share of the cloth that moved more than the settle test's
+        step in it (the settle test's own figure, :func:`vfit_engine.drape.run_drape`)."""
         if self.quiet:
             return
-        import numpy as np
-
-        moving = float("nan")
-        if self.prev is not None:
-            moving = 100.0 * float(np.mean(np.sum((pos - self.prev) ** 2, axis=1) > settle_step ** 2))
-        self.prev = pos.copy()
-        text = (f"settling: frame {frame} (at most {max_frames}), {moving:.1f} % of the cloth still moving "
+        text = (f"settling: frame {frame} (at most {max_frames}), {100 * moving:.1f} % of the cloth still moving "
                 f"({time.perf_counter() - self.t0:.1f} s)")
         if self.tty:
             click.echo("\r" + text + "\033[K", file=self.stream, nl=False)

@@ -1,13 +1,11 @@
 """``vfit drape``: drape a garment on a body (the default one, a file, or one built to measurements)."""
-import contextlib
 import copy
-import signal
 from types import SimpleNamespace
 
 import click
 
 from . import morph as _morph
-from ._common import check_output_path, handle_errors, write_json
+from ._common import check_output_path, handle_errors, interruption, write_json
 from ._outdir import OutdirLock, check_outdir, clear_outputs
 from ._progress import Progress, kernels_cached
 
@@ -120,49 +118,17 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
                            preview=preview, outdir=outdir, json_path=json_path, quiet=quiet,
                            gender=gender if gender_given else None, weight=weight, definition=definition,
                            targets=targets, t_start=t_start)
-    stop = _Stop()
     try:
-        with OutdirLock(outdir), stop.catching_sigterm():
-            code = _drape(opts, stop)
-    except KeyboardInterrupt:  # during the set-up (the frame loop reports its own)
-        stop.interrupted()
-        click.echo(f"Error: interrupted by {stop.signal} before the drape started; nothing written", err=True)
-        code = stop.exit_code
+        with OutdirLock(outdir):
+            code = _drape(opts)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (the vfit group's) during the set-up
+        name, code = interruption(exc)
+        click.echo(f"Error: interrupted by {name} before the drape started; nothing written", err=True)
     if code:
         ctx.exit(code)
 
 
-class _Stop:
-    """How a run was interrupted: Ctrl-C (SIGINT, exit 130) or SIGTERM (exit 143, raised as KeyboardInterrupt
-    by :meth:`catching_sigterm` so both end the run the same way). The ``vfit`` group turns either into its
-    exit code for every command; the drape catches them itself to keep its frames and say in its report
-    which signal stopped it."""
-
-    def __init__(self):
-        self.signal, self.exit_code = None, 0
-
-    def interrupted(self):
-        if self.signal is None:
-            self.signal, self.exit_code = "SIGINT", 130
-
-    @contextlib.contextmanager
-    def catching_sigterm(self):
-        def on_term(signum, frame):
-            self.signal, self.exit_code = "SIGTERM", 143
-            raise KeyboardInterrupt
-
-        try:
-            old = signal.signal(signal.SIGTERM, on_term)
-        except ValueError:  # not the main thread: leave signals alone
-            old = None
-        try:
-            yield self
-        finally:
-            if old is not None:
-                signal.signal(signal.SIGTERM, old)
-
-
-def _drape(o, stop):
+def _drape(o):
     """The drape command's work inside its held OUTDIR (``o``: the options); returns the exit code (0, 3 not
     settled, 130 / 143 interrupted)."""
     import os
@@ -202,9 +168,9 @@ def _drape(o, stop):
     clear_outputs(o.outdir, OUTPUT_GLOBS)
     context = dict(garment=o.garment, garment_units=g.units, garment_vertices=g.mesh.n_verts,
                    garment_gender=tag_gender, warnings=list(g.warnings), body=body.description)
-    result, written = _simulate(setup, settings, o, context, stop)
-    if result is None:
-        return stop.exit_code
+    result, written = _simulate(setup, settings, o, context)
+    if isinstance(result, int):  # interrupted: its exit code
+        return result
     report = _finish(setup, result, model, o.outdir, o.fmt, o.preview, written, context,
                      time.perf_counter() - o.t_start)
     write_json(os.path.join(o.outdir, "report.json"), report)
@@ -230,11 +196,12 @@ def _unsettled(setup, result, settings, report):
     return 3
 
 
-def _simulate(setup, settings, o, context, stop):
+def _simulate(setup, settings, o, context):
     """Run the drape, writing frames and its progress; returns (result, written files).
 
     On divergence the last good frame and a report are written and DrapeDiverged re-raised; on Ctrl-C or
-    SIGTERM the frames so far stay, a report marked ``interrupted`` is written, and the result is None.
+    SIGTERM the frames so far stay, a report marked ``interrupted`` is written, and the result is the exit
+    code (130 / 143).
     """
     import os
 
@@ -255,11 +222,11 @@ def _simulate(setup, settings, o, context, stop):
 
     o.progress.stage(f"settling (up to {settings.max_frames} frames; it ends when the cloth stops moving)")
 
-    def on_frame(frame, pos):
+    def on_frame(frame, pos, moving):
         done[0] = frame
         if o.every and frame % o.every == 0:
             save(f"frame_{frame:04d}", pos)
-        o.progress.frame(frame, pos, settings.max_frames, settings.settle_step)
+        o.progress.frame(frame, moving, settings.max_frames)
 
     try:
         if o.every:
@@ -270,12 +237,12 @@ def _simulate(setup, settings, o, context, stop):
             save(f"frame_{exc.last_good_frame:04d}", exc.last_good)
         report(diverged=exc)
         raise
-    except KeyboardInterrupt:
-        stop.interrupted()
-        report(interrupted=dict(signal=stop.signal, frames=done[0]))
-        click.echo(f"Error: interrupted by {stop.signal} after {done[0]} frames; kept "
+    except KeyboardInterrupt as exc:
+        name, code = interruption(exc)
+        report(interrupted=dict(signal=name, frames=done[0]))
+        click.echo(f"Error: interrupted by {name} after {done[0]} frames; kept "
                    f"{len(written)} frame file(s) and report.json in {o.outdir}", err=True)
-        return None, written
+        return code, written
     finally:
         o.progress.done()
 

@@ -10,6 +10,7 @@ import sys
 import click
 
 from . import drape, measure, morph, segment, transfer
+from ._common import Terminated, interruption
 
 
 class OneLineErrors(click.Group):
@@ -18,11 +19,8 @@ class OneLineErrors(click.Group):
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
         if not standalone_mode:  # a caller that handles click's exceptions itself
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
-        terminated = []
-
         def on_term(signum, frame):  # SIGTERM ends a run like Ctrl-C does, with its own exit code
-            terminated.append(signum)
-            raise KeyboardInterrupt
+            raise Terminated
 
         try:
             previous = signal.signal(signal.SIGTERM, on_term)
@@ -37,9 +35,10 @@ class OneLineErrors(click.Group):
         except click.ClickException as exc:
             exc.show()
             sys.exit(exc.exit_code)
-        except click.Abort:  # (click's form of KeyboardInterrupt)
-            click.echo(f"Error: interrupted by {'SIGTERM' if terminated else 'SIGINT'}", err=True)
-            sys.exit(143 if terminated else 130)
+        except click.Abort as exc:  # (click's form of KeyboardInterrupt)
+            name, code = interruption(exc.__cause__)
+            click.echo(f"Error: interrupted by {name}", err=True)
+            sys.exit(code)
         finally:
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)

@@ -161,7 +161,7 @@ def test_divergence_is_detected_at_once(skirt_run):
     setup, _ = skirt_run
     seen = []
 
-    def poison(frame, pos):
+    def poison(frame, pos, moving):
         seen.append(frame)
         if frame == 3:
             pos[5, 1] = np.nan
@@ -175,7 +175,7 @@ def test_divergence_is_detected_at_once(skirt_run):
 
     # a runaway speed (not NaN) is divergence too: the whole cloth thrown 2 cm in one substep (~10 m/s)
     # against a limit of 2 m/s (a kick far beyond the limit blows the cloth up to NaN within the frame)
-    def kick(frame, pos):
+    def kick(frame, pos, moving):
         if frame == 2:
             pos += [0.0, 0.0, 0.02]
 

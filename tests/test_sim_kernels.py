@@ -189,6 +189,18 @@ def _kernel_sweep(x, w, c, lam, active, n_active, first, hot=None):
     return n
 
 
+def _first_sweep(x, w, c, lam0, hot=None):
+    """A substep's first sweep by the reference and by the kernel, asserted equal (positions, lam, the active
+    list); returns the reference's (x, lam, active) and the kernel's (x, lam, active array, count)."""
+    ref_x, ref_lam, ref_active = naive_sim.distance_sweep(x, w, c, lam0, AT_SCALE, hot=hot)
+    got_x, got_lam, active = x.copy(), lam0.copy(), np.zeros(c["i"].size, np.int64)
+    n = _kernel_sweep(got_x, w, c, got_lam, active, 0, True, hot=hot)
+    np.testing.assert_allclose(got_x, ref_x, rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(got_lam, ref_lam, rtol=1e-10, atol=1e-15)
+    assert active[:n].tolist() == ref_active
+    return (ref_x, ref_lam, ref_active), (got_x, got_lam, active, n)
+
+
 def _sweep_data(seed, n=30):
     rng = np.random.default_rng(seed)
     x = 0.05 * rng.normal(size=(n, 3))
@@ -202,13 +214,7 @@ def test_distance_sweep_matches_reference(seed):
     """One XPBD sweep (bands, compliance, relax, angle constraints), then a later sweep over the
     constraints the first found active, carrying lam."""
     rng, x, w, c = _sweep_data(seed)
-    lam0 = np.zeros(c["i"].size)
-    ref_x, ref_lam, ref_active = naive_sim.distance_sweep(x, w, c, lam0, AT_SCALE)
-    got_x, got_lam, active = x.copy(), lam0.copy(), np.zeros(c["i"].size, np.int64)
-    n = _kernel_sweep(got_x, w, c, got_lam, active, 0, True)
-    np.testing.assert_allclose(got_x, ref_x, rtol=1e-10, atol=1e-13)
-    np.testing.assert_allclose(got_lam, ref_lam, rtol=1e-10, atol=1e-15)
-    assert active[:n].tolist() == ref_active
+    (ref_x, ref_lam, _), (got_x, got_lam, active, n) = _first_sweep(x, w, c, np.zeros(c["i"].size))
     # the data exercise every branch: pulls, pushes, angles, and constraints left alone
     assert np.any(ref_lam < 0) and np.any(ref_lam > 0)
     assert 0 < n < c["i"].size and np.any(c["corner"][active[:n]] >= 0)
@@ -226,12 +232,7 @@ def test_distance_sweep_with_held_forces_matches_reference():
     rng, x, w, c = _sweep_data(7)
     lam0 = rng.choice([-1.0, 0.0, 1.0], c["i"].size) * rng.uniform(1e-4, 3e-3, c["i"].size)
     lam0[c["corner"] >= 0] = 0.0
-    ref_x, ref_lam, ref_active = naive_sim.distance_sweep(x, w, c, lam0, AT_SCALE)
-    got_x, got_lam, active = x.copy(), lam0.copy(), np.zeros(c["i"].size, np.int64)
-    n = _kernel_sweep(got_x, w, c, got_lam, active, 0, True)
-    np.testing.assert_allclose(got_x, ref_x, rtol=1e-10, atol=1e-13)
-    np.testing.assert_allclose(got_lam, ref_lam, rtol=1e-10, atol=1e-15)
-    assert active[:n].tolist() == ref_active
+    (_, ref_lam, _), _ = _first_sweep(x, w, c, lam0)
     # some held forces were released to exactly zero rather than changing sign
     released = (lam0 != 0) & (ref_lam == 0)
     assert released.sum() >= 3
@@ -246,11 +247,8 @@ def test_constraints_of_hot_vertices_are_listed():
     hot[rng.choice(x.shape[0], 4, replace=False)] = True
     lam0 = np.zeros(c["i"].size)
     _, _, cold = naive_sim.distance_sweep(x, w, c, lam0, AT_SCALE)
-    ref_x, ref_lam, ref_active = naive_sim.distance_sweep(x, w, c, lam0, AT_SCALE, hot=hot)
-    got_x, got_lam, active = x.copy(), lam0.copy(), np.zeros(c["i"].size, np.int64)
-    n = _kernel_sweep(got_x, w, c, got_lam, active, 0, True, hot=hot)
-    assert active[:n].tolist() == ref_active and set(cold) < set(ref_active)
-    np.testing.assert_allclose(got_x, ref_x, rtol=1e-10, atol=1e-13)
+    (_, _, ref_active), _ = _first_sweep(x, w, c, lam0, hot=hot)
+    assert set(cold) < set(ref_active)
     ends = np.stack([c["i"], c["j"], np.where(c["corner"] >= 0, c["corner"], c["i"])], axis=1)
     added = sorted(set(ref_active) - set(cold))
     assert all(hot[ends[a]].any() for a in added)

@@ -177,7 +177,8 @@ def run_drape(setup, settings=None, on_frame=None):
     setup : DrapeSetup
     settings : DrapeSettings or None
     on_frame : callable or None
-        ``on_frame(frame, pos)`` after each good frame (frame counts from 1; ``pos`` is the live
+        ``on_frame(frame, pos, moving)`` after each good frame (frame counts from 1; ``moving``: the share
+        of the vertices that moved more than ``settle_step`` in it, the settle test's; ``pos`` is the live
         (n, 3) array: copy it to keep it).
 
     Returns
@@ -224,9 +225,10 @@ def run_drape(setup, settings=None, on_frame=None):
             raise DrapeDiverged(f"simulation diverged at frame {frame} ({what}); last good frame {frame - 1}",
                                 frame=frame, last_good=last_good.copy(), last_good_frame=frame - 1)
         np.copyto(last_good, state.pos)
+        settled = settle.frame(state.pos, frame >= ramp)
         if on_frame is not None:
-            on_frame(frame, state.pos)
-        if settle.frame(state.pos, frame >= ramp):
+            on_frame(frame, state.pos, settle.share)
+        if settled:
             converged = True
             break
     wall = time.perf_counter() - t0

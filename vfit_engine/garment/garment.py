@@ -261,7 +261,7 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
     used[mesh.face_verts] = True
     if not used.all():
         warnings.append(f"{int((~used).sum())} vertices are not used by any face (kept, they stay free)")
-    pieces = piece_labels(mesh.n_verts, mesh.edges())
+    pieces = piece_labels(mesh.n_verts, e)
     n_pieces = int(pieces.max()) + 1 if pieces.size else 0
     if n_pieces > SOUP_PIECES and n_pieces * SOUP_FACES_PER_PIECE > mesh.n_faces:
         warnings.append(f"{n_pieces} unconnected pieces for {mesh.n_faces} faces: a triangle soup (faces that share "
