@@ -17,11 +17,16 @@ COLLIDERS = ("mesh", "spheres", "bone-spheres", "ellipsoids", "hulls")
 MORPH_OPTIONS = ("gender", "height", "weight") + _morph.GIRTH_OPTIONS + ("definition",)
 #: Files a drape writes into OUTDIR (removed before a new run writes there, so none is left from an
 #: earlier one).
-OUTPUT_GLOBS = ("final.obj", "final.ply", "body.obj", "body.ply", "report.json", "preview.png", "frame_*.obj",
-                "frame_*.ply")
+OUTPUT_GLOBS = ("final.obj", "final.ply", "final.glb", "body.obj", "body.ply", "body.glb", "report.json", "preview.png",
+                "fit.ply", "scene.glb", "drape.gif", "frame_*.obj", "frame_*.ply", "frame_*.glb")
+#: Fit maps a picture can show (``vfit_engine.fit.outputs.PICTURE_MAPS``).
+MAPS = ("strain", "ease", "pressure")
 #: An unpinned garment that did not settle and whose mean height fell by more than this (m) slid down the
 #: body: the error says so.
 FELL_M = 0.05
+#: ``--gif`` keeps every GIF_EVERY-th frame and draws at most GIF_FRAMES of them.
+GIF_EVERY = 2
+GIF_FRAMES = 60
 
 
 def morph_options(func):
@@ -67,10 +72,14 @@ def morph_options(func):
               help="Most frames to simulate (60 per simulated second) [default: 600].")
 @click.option("--every", type=click.IntRange(0, 100000), default=10, show_default=True,
               help="Write frame_NNNN every K frames, frame_0000 being the start (0: none).")
-@click.option("--format", "fmt", type=click.Choice(["obj", "ply"]), default="obj", show_default=True,
-              help="Mesh format of the outputs.")
+@click.option("--format", "fmt", type=click.Choice(["obj", "ply", "glb"]), default="obj", show_default=True,
+              help="Mesh format of final, body and frame files (glb: glTF for viewers, vertices split at UV seams).")
 @click.option("--preview", is_flag=True, help="Also write OUTDIR/preview.png: body and garment from the front, "
-                                              "side and back, the garment coloured by yarn strain.")
+                                              "side and back, the garment coloured by --map, with a colour bar.")
+@click.option("--map", "map_name", type=click.Choice(MAPS), default="strain", show_default=True,
+              help="Fit map that colours the preview, the GIF and scene.glb: yarn strain (%), ease (mm from the "
+                   "skin) or contact pressure (kPa).")
+@click.option("--gif", is_flag=True, help="Also write OUTDIR/drape.gif: the drape frame by frame, from the front.")
 @click.option("-o", "--output", "outdir", default="drape_out", show_default=True,
               type=click.Path(file_okay=False), help="Output directory (created if missing).")
 @click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),
@@ -79,14 +88,17 @@ def morph_options(func):
 @click.pass_context
 @handle_errors
 def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, units, frames, every, fmt, preview,
-          outdir, json_path, quiet, gender, height, weight, definition, **girths):
+          map_name, gif, outdir, json_path, quiet, gender, height, weight, definition, **girths):
     """Drape GARMENT (.obj/.ply) on a body and write the result to OUTDIR.
 
     The garment keeps its own size: on a bigger body it is stretched, on a
     smaller one it hangs loose, and the report says where and by how much
     (--rest graded grades it to the body instead). Writes OUTDIR/final.obj (the
     garment's vertex order, faces and UVs; metres, Y up), OUTDIR/body.obj,
-    OUTDIR/report.json and, with --every K, OUTDIR/frame_NNNN.obj. Exit 3 when
+    OUTDIR/report.json (with a fit table per body region), OUTDIR/fit.ply (the
+    fit maps per vertex: strain, shear_deg, ease_mm, pressure_kpa, contact),
+    OUTDIR/scene.glb (body and garment coloured by --map) and, with --every K,
+    OUTDIR/frame_NNNN.obj. Exit 3 when
     the cloth has not settled within --frames, 4 when the simulation diverged
     (the last good frame is kept).
 
@@ -115,7 +127,7 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
     opts = SimpleNamespace(garment=garment, body_path=body_path, material=material, rest=rest, transfer=transfer,
                            collider=collider, pin=pin, units=units, frames=frames, every=every, fmt=fmt,
-                           preview=preview, outdir=outdir, json_path=json_path, quiet=quiet,
+                           preview=preview, map_name=map_name, gif=gif, outdir=outdir, json_path=json_path, quiet=quiet,
                            gender=gender if gender_given else None, weight=weight, definition=definition,
                            targets=targets, t_start=t_start)
     try:
@@ -171,8 +183,7 @@ def _drape(o):
     result, written = _simulate(setup, settings, o, context)
     if isinstance(result, int):  # interrupted: its exit code
         return result
-    report = _finish(setup, result, model, o.outdir, o.fmt, o.preview, written, context,
-                     time.perf_counter() - o.t_start)
+    report = _finish(setup, result, model, o, written, context, time.perf_counter() - o.t_start)
     write_json(os.path.join(o.outdir, "report.json"), report)
     if o.json_path:
         write_json(o.json_path, report)
@@ -208,6 +219,7 @@ def _simulate(setup, settings, o, context):
     from vfit_engine.drape import DrapeDiverged, drape_report, run_drape
 
     written, done = [], [0]
+    o.gif_frames = [setup.start.astype("float32")] if o.gif else None
 
     def save(name, verts):
         path = os.path.join(o.outdir, f"{name}.{o.fmt}")
@@ -226,6 +238,8 @@ def _simulate(setup, settings, o, context):
         done[0] = frame
         if o.every and frame % o.every == 0:
             save(f"frame_{frame:04d}", pos)
+        if o.gif_frames is not None and frame % GIF_EVERY == 0:
+            o.gif_frames.append(pos.astype("float32"))
         o.progress.frame(frame, moving, settings.max_frames)
 
     try:
@@ -247,29 +261,50 @@ def _simulate(setup, settings, o, context):
         o.progress.done()
 
 
-def _finish(setup, result, model, outdir, fmt, preview, written, context, elapsed):
-    """Write the final garment, the body and (with ``preview``) the picture; return the report."""
+def _finish(setup, result, model, o, written, context, elapsed):
+    """Write the final garment, the body, the fit maps and scene and (asked for) the pictures; return the
+    report (with the fit table)."""
     import os
 
     from vfit_engine.body.bodyio import write_body
     from vfit_engine.drape import drape_report
+    from vfit_engine.fit.maps import MAP_UNITS, fit_maps
+    from vfit_engine.fit.outputs import write_fit_ply, write_preview, write_scene
+    from vfit_engine.fit.table import FitTable, summary_line
 
-    final = os.path.join(outdir, f"final.{fmt}")
+    final = os.path.join(o.outdir, f"final.{o.fmt}")
     _write_garment(final, setup, result.pos, context)
-    body_file = os.path.join(outdir, f"body.{fmt}")
+    body_file = os.path.join(o.outdir, f"body.{o.fmt}")
     write_body(body_file, model, setup.body.verts,
                header=[f"vfit drape: the body draped on ({setup.body.description.get('source')}); metres, Y up"])
     written += [final, body_file]
-    if preview:
-        from vfit_engine.drape.metrics import vertex_strain
-        from vfit_engine.preview import render_views
+    o.progress.stage("measuring the fit: maps, the table per body region, the scene")
+    maps = fit_maps(setup, result.pos)
+    rows = FitTable(setup.body, model).rows(setup, result.pos, maps)
+    paths = {name: os.path.join(o.outdir, name) for name in ("fit.ply", "scene.glb", "preview.png", "drape.gif")}
+    write_fit_ply(paths["fit.ply"], setup, result.pos, maps)
+    write_scene(paths["scene.glb"], setup, result.pos, model, maps, o.map_name)
+    written += [paths["fit.ply"], paths["scene.glb"]]
+    if o.preview:
+        write_preview(paths["preview.png"], setup, result.pos, model, maps, o.map_name)
+        written.append(paths["preview.png"])
+    if o.gif:
+        _write_gif(paths["drape.gif"], setup, model, o.gif_frames + [result.pos])
+        written.append(paths["drape.gif"])
+    fit = dict(fit=rows, fit_summary=summary_line(rows),
+               fit_units=dict(girth="cm", ease="cm", strain="fraction", pressure="kPa"),
+               fit_maps=dict(file="fit.ply", properties=MAP_UNITS))
+    return drape_report(setup, result, outputs=written, total_time_s=elapsed, **fit, **context)
 
-        path = os.path.join(outdir, "preview.png")
-        render_views(path, setup.body.surface, model.body_tris, result.pos, setup.garment.mesh.triangles(),
-                     vertex_strain(setup.garment.mesh, result.pos), label="yarn strain", unit="%",
-                     title=f"{os.path.basename(context['garment'])}: yarn strain against the garment as given")
-        written.append(path)
-    return drape_report(setup, result, outputs=written, total_time_s=elapsed, **context)
+
+def _write_gif(path, setup, model, frames):
+    """``drape.gif`` of the garment ``frames`` on the body, at most ``GIF_FRAMES`` of them, evenly spread."""
+    import numpy as np
+
+    from vfit_engine.animation import write_gif
+
+    pick = np.unique(np.linspace(0, len(frames) - 1, min(len(frames), GIF_FRAMES)).round().astype(int))
+    write_gif(path, setup.body.surface, model.body_tris, [frames[k] for k in pick], setup.garment.mesh.triangles())
 
 
 def _write_garment(path, setup, verts, context):
@@ -298,6 +333,7 @@ def _summary(g, setup, result, report):
         click.echo(f"  too tight at the {t['part']}: stretched up to {100 * t['max_strain']:.1f} % (p99 "
                    f"{100 * t['p99_strain']:.1f} %), beyond the {100 * t['fabric_limit']:.0f} % "
                    f"{setup.material.name} gives: it cannot be worn there")
+    click.echo(f"  fit: {report['fit_summary']}")
     for o in report["tight_openings"]:
         x, y, z = (100 * c for c in o["centre_m"])
         click.echo(f"  tight: the opening of {o['vertices']} vertices at ({x:.1f}, {y:.1f}, {z:.1f}) cm is "

@@ -131,7 +131,8 @@ def test_preview_rerun_and_determinism(tmp_path):
     (out / "notes.txt").write_text("mine")
     r = run(DEMO_SKIRT, "-o", out, "--frames", 4, "--every", 0, "-q")
     assert r.exit_code == 3, r.output
-    assert sorted(p.name for p in out.iterdir()) == ["body.obj", "final.obj", "notes.txt", "report.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["body.obj", "final.obj", "fit.ply", "notes.txt", "report.json",
+                                                    "scene.glb"]
     assert (out / "final.obj").read_bytes() == first
 
 

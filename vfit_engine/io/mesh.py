@@ -233,7 +233,7 @@ def write_mesh(path, mesh, verts=None, header=None):
     Parameters
     ----------
     path : str or Path
-        ``.obj`` or ``.ply``.
+        ``.obj``, ``.ply`` or ``.glb`` (write-only: a glTF scene for viewers; the header is not kept).
     mesh : MeshData
     verts : (n, 3) array_like or None
         Positions to write instead of ``mesh.verts`` (same count and order).
@@ -251,4 +251,9 @@ def write_mesh(path, mesh, verts=None, header=None):
         from vfit_engine.io.ply import write_ply
 
         return write_ply(path, mesh, header=header)
-    raise InputError(f"{path}: unknown mesh format {ext or '(no extension)'!r}, expected .obj or .ply")
+    if ext == ".glb":
+        from vfit_engine.io.gltf import ScenePart, write_scene_glb
+
+        # a one-mesh glTF scene (UVs kept; vertices split at UV seams, see vfit_engine.io.gltf)
+        return write_scene_glb(path, [ScenePart(Path(path).stem, mesh)])
+    raise InputError(f"{path}: unknown mesh format {ext or '(no extension)'!r}, expected .obj, .ply or .glb")

@@ -214,7 +214,7 @@ def read_ply(path, max_verts=MAX_VERTS):
     )
 
 
-def write_ply(path, mesh, header=None, colors=None, binary=True):
+def write_ply(path, mesh, header=None, colors=None, binary=True, properties=None):
     """Write ``mesh`` as PLY atomically.
 
     Parameters
@@ -227,6 +227,9 @@ def write_ply(path, mesh, header=None, colors=None, binary=True):
         Per-vertex colours; defaults to ``mesh.colors``.
     binary : bool
         Binary little-endian (default) or ASCII.
+    properties : dict or None
+        Extra per-vertex values, name -> (n,) float, written as ``property float NAME`` (float32) after
+        the colours (fit maps: ``strain``, ``ease_mm`` ...).
     """
     verts = np.ascontiguousarray(mesh.verts, dtype=np.float64)
     if not np.all(np.isfinite(verts)):
@@ -239,6 +242,12 @@ def write_ply(path, mesh, header=None, colors=None, binary=True):
         if colors.shape != (n, 3):
             raise InputError(f"colours have shape {colors.shape}, mesh needs ({n}, 3)")
         colors = colors.astype(np.uint8)
+    extra = {}
+    for name, values in (properties or {}).items():
+        values = np.asarray(values, dtype=np.float32).ravel()
+        if values.shape != (n,) or not name.isidentifier():
+            raise InputError(f"vertex property {name!r} has {values.size} values, mesh needs {n}")
+        extra[name] = values
     sizes = mesh.face_sizes()
     if sizes.size and sizes.max() > 255:
         big = int(np.argmax(sizes))
@@ -251,16 +260,20 @@ def write_ply(path, mesh, header=None, colors=None, binary=True):
     lines += [f"element vertex {n}", "property double x", "property double y", "property double z"]
     if colors is not None:
         lines += ["property uchar red", "property uchar green", "property uchar blue"]
+    lines += [f"property float {name}" for name in extra]
     lines += [f"element face {mesh.n_faces}", "property list uchar int vertex_indices", "end_header"]
     head = ("\n".join(lines) + "\n").encode("ascii")
     if binary:
         vfields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
         if colors is not None:
             vfields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
+        vfields += [(name, "<f4") for name in extra]
         varr = np.empty(n, dtype=np.dtype(vfields))
         varr["x"], varr["y"], varr["z"] = verts[:, 0], verts[:, 1], verts[:, 2]
         if colors is not None:
             varr["red"], varr["green"], varr["blue"] = colors[:, 0], colors[:, 1], colors[:, 2]
+        for name, values in extra.items():
+            varr[name] = values
         # each face record: uchar count, then count little-endian int32 (built in one buffer)
         m = mesh.n_faces
         rec_bytes = 1 + 4 * sizes
@@ -278,8 +291,9 @@ def write_ply(path, mesh, header=None, colors=None, binary=True):
             f.write(payload)
         return
     body = []
-    fmt = "%.17g %.17g %.17g" + (" %d %d %d" if colors is not None else "") + "\n"
+    fmt = "%.17g %.17g %.17g" + (" %d %d %d" if colors is not None else "") + " %.9g" * len(extra) + "\n"
     cols = [verts] if colors is None else [verts, colors.astype(np.float64)]
+    cols += [v.astype(np.float64)[:, None] for v in extra.values()]
     vals = np.concatenate(cols, axis=1)
     body.append((fmt * n) % tuple(vals.ravel().tolist()))
     o = mesh.face_offsets

@@ -1,0 +1,293 @@
+"""The fit table: how a draped garment fits each body region (``report.json["fit"]``).
+
+One row per region the garment goes round -- bust (men: chest), underbust (women), waist, hips, neck,
+upper arms, thighs -- and per garment opening that goes round the body (hems, cuffs, waistbands,
+necklines). A region is measured in one plane:
+
+* bust, underbust, waist and hips: the horizontal plane of vfit's tape girth (ISO 8559-1 style, the
+  plane the band search chose; :class:`vfit_engine.body.measure.Measurer`);
+* neck, upper arms and thighs: the plane that fits MakeHuman's ruler loop best (least squares; the left
+  side's loop is MakeHuman's, the right side's its mirror image);
+* an opening: its own loop, against the body part it encircles
+  (:func:`vfit_engine.garment.openings.check_openings` at the draped position).
+
+Figures of a row: ``body_girth_cm`` (a tape round the body in the plane: the convex hull of the loop
+round the region), ``garment_girth_cm`` (a tape round the draped garment in the same plane, over its
+outside: the hull of the outermost garment loop that goes round the region; for an opening, its
+draped length), ``ease_cm`` (their difference), ``girth_strain`` (how far the cloth round the region
+is stretched: sum l / sum l0 - 1 over the garment's yarn edges that run round it within ``BAND`` of
+the plane; for an opening, its draped length over its length as given), ``max_strain`` (the largest
+yarn strain there, edges >= 3 mm), ``pressure_kpa_max`` (:mod:`.maps`) and the verdict:
+
+* ``tight``  the cloth round the region is stretched by more than ``TIGHT_SHARE`` of the stretch the
+  fabric gives (``Material.max_strain``: cotton 10 % -> 3 %, jersey 30 % -> 9 %, denim 5 % -> 1.5 %),
+  or an edge there beyond it, or (an opening) the body forces it wider than it is made;
+* ``loose``  not tight, and more than ``LOOSE_EASE_CM`` of the region's ease (bust, chest, underbust,
+  waist, hips 12 cm; neck 6; upper arm 8; thigh 10; openings 10);
+* ``fitted`` otherwise.
+
+``key`` marks the regions that decide a size (bust/chest, waist and hips).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from vfit_engine.fit.maps import fit_maps
+
+#: Half-width of the band round a region's plane whose edges give its strain, m.
+BAND = 0.02
+#: An edge runs round the region when its direction is within 60 degrees of the plane.
+ROUND_COS = 0.5
+#: Tight beyond this share of the fabric's stretch limit (module docstring).
+TIGHT_SHARE = 0.3
+#: Loose beyond this ease, cm (module docstring); openings use ``"opening"``.
+LOOSE_EASE_CM = {"bust": 12.0, "chest": 12.0, "underbust": 12.0, "waist": 12.0, "hips": 12.0, "neck": 6.0,
+                 "upper arm": 8.0, "thigh": 10.0, "opening": 10.0}
+#: Torso regions (vfit's tape girths) and limb regions (MakeHuman rulers), in table order.
+TORSO = ("bust", "underbust", "waist", "hips")
+LIMBS = (("neck", "neck-circ"), ("upper arm", "upperarm-circ"), ("thigh", "thigh-circ"))
+KEY_REGIONS = ("bust", "chest", "waist", "hips")
+
+
+def _hull(points_xz):
+    """Convex hull of (k, 2) points: (hull points (h, 2), perimeter m, equations (h, 3)) or None."""
+    from scipy.spatial import ConvexHull
+
+    if len(points_xz) < 3:
+        return None
+    try:
+        h = ConvexHull(points_xz)
+    except Exception:  # collinear
+        return None
+    return points_xz[h.vertices], float(h.area), h.equations
+
+
+class _Plane:
+    """A cutting plane through ``centre`` with unit ``normal``, and the frame that makes it horizontal."""
+
+    def __init__(self, centre, normal):
+        from vfit_engine.section import rotation_to_y
+
+        self.centre = np.asarray(centre, dtype=np.float64)
+        self.normal = np.asarray(normal, dtype=np.float64) / np.linalg.norm(normal)
+        self.rot = rotation_to_y(self.normal)
+        c = self.rot @ self.centre
+        self.height, self.centre_xz = float(c[1]), c[[0, 2]]
+
+    def loops_round(self, sections, verts, reach):
+        """Hulls (point arrays, perimeter, equations) of the section loops that go round the centre,
+        none of whose points lies farther than ``reach`` (m) from it, outermost first."""
+        from vfit_engine.geometry import winding_number
+
+        out = []
+        for loop in sections.loops(np.ascontiguousarray(verts @ self.rot.T), self.height):
+            if len(loop) < 3 or np.max(np.linalg.norm(loop - self.centre_xz, axis=1)) > reach:
+                continue
+            if abs(winding_number(loop, self.centre_xz)) > 0.5:
+                h = _hull(loop)
+                if h is not None:
+                    out.append(h)
+        return sorted(out, key=lambda h: -h[1])
+
+
+def _limb_planes(model, verts):
+    """(name, side, plane, reach) of the neck and both upper arms and thighs, from MakeHuman's rulers."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(verts)
+    out = []
+    for name, ruler in LIMBS:
+        idx = np.asarray(model.rulers[ruler]["vertex_indices"], dtype=np.int64)
+        p = verts[idx]
+        sides = [("", p)]
+        if name != "neck":
+            mirror = verts[tree.query(p * np.array([-1.0, 1.0, 1.0]))[1]]
+            own = "left" if p[:, 0].mean() > 0 else "right"  # +X is the body's left
+            sides = [(own, p), ("right" if own == "left" else "left", mirror)]
+        for side, q in sides:
+            centre = q.mean(axis=0)
+            normal = np.linalg.svd(q - centre)[2][2]
+            reach = 1.5 * float(np.max(np.linalg.norm(q - centre, axis=1)))
+            out.append((name, side, _Plane(centre, normal), reach))
+    return out
+
+
+def _round_edges(edges, rest, pos, plane, hull_eq, margin=0.01):
+    """Mask of the yarn edges that run round the region: both ends within ``BAND`` of the plane, the
+    edge within 60 degrees of it, and its midpoint inside the garment's hull (+ ``margin``)."""
+    a, b = pos[edges[:, 0]], pos[edges[:, 1]]
+    off_a, off_b = (a - plane.centre) @ plane.normal, (b - plane.centre) @ plane.normal
+    d = b - a
+    length = np.linalg.norm(d, axis=1)
+    along = np.abs(d @ plane.normal) <= ROUND_COS * np.maximum(length, 1e-12)
+    mid = (0.5 * (a + b)) @ plane.rot.T
+    inside = np.all(mid[:, [0, 2]] @ hull_eq[:, :2].T + hull_eq[:, 2] <= margin, axis=1)
+    return (np.abs(off_a) <= BAND) & (np.abs(off_b) <= BAND) & along & inside
+
+
+class FitTable:
+    """Builds the fit table of drapes on one body (the body's sections and planes are built once)."""
+
+    def __init__(self, body, model):
+        from vfit_engine.body.measure import Measurer
+
+        self.measurer = Measurer(model)
+        self.body_verts = np.ascontiguousarray(body.surface, dtype=np.float64)
+        self.gender = body.gender
+        m = self.measurer.measure(self.body_verts, names=TORSO, mass=False)
+        self.regions = []  # (region, side, plane, reach, body girth m)
+        self.chest_y = float(m.planes["bust"])
+        g = self.gender
+        # a body file's gender is unknown (None): women's names (bust, underbust), which measure a man too
+        female = g is None or g == "female" or (not isinstance(g, str) and float(g) < 0.5)
+        for name in TORSO:
+            if name == "underbust" and not female:
+                continue
+            plane = _Plane(self._torso_centre(m.planes[name]), (0.0, 1.0, 0.0))
+            label = "chest" if name == "bust" and not female else name
+            self.regions.append((label, "", plane, 1.0, float(m.values[name])))
+        for name, side, plane, reach in _limb_planes(model, self.body_verts):
+            loops = plane.loops_round(self.measurer.sections, self.body_verts, reach)
+            if loops:
+                self.regions.append((name, side, plane, reach, loops[-1][1]))
+
+    def _torso_centre(self, y):
+        """Centre (3,) of the torso loop's hull at height ``y`` (the largest loop spanning x = 0)."""
+        best = None
+        for loop in self.measurer.sections.loops(self.body_verts, y):
+            h = _hull(loop)
+            if h is not None and loop[:, 0].min() <= 0.0 <= loop[:, 0].max() and (best is None or h[1] > best[1]):
+                best = h
+        c = best[0].mean(axis=0) if best is not None else np.zeros(2)
+        return np.array([c[0], y, c[1]])
+
+    def rows(self, setup, pos, maps=None):
+        """The table (module docstring) of ``setup``'s garment at ``pos``: list of dict."""
+        from vfit_engine.section import MeshSections
+
+        pos = np.ascontiguousarray(pos, dtype=np.float64)
+        maps = maps if maps is not None else fit_maps(setup, pos)
+        mesh = setup.garment.mesh
+        sections = MeshSections(mesh.triangles(), mesh.n_verts)
+        edges = mesh.edges()
+        l0 = np.linalg.norm(mesh.verts[edges[:, 1]] - mesh.verts[edges[:, 0]], axis=1)
+        length = np.linalg.norm(pos[edges[:, 1]] - pos[edges[:, 0]], axis=1)
+        limit = float(setup.material.max_strain)
+        out = []
+        for name, side, plane, reach, body_girth in self.regions:
+            loops = plane.loops_round(sections, pos, max(reach, 3.0 * body_girth / (2 * np.pi)))
+            if not loops:
+                continue  # the garment does not go round this region
+            hull, girth, eq = loops[0]
+            sel = _round_edges(edges, mesh.verts, pos, plane, eq) & (l0 > 0)
+            if not sel.any():
+                continue
+            strain = length[sel] / l0[sel] - 1.0
+            long_ = l0[sel] >= 0.003
+            verts = np.unique(edges[sel])
+            row = _row(name, side, body_girth, girth, float(length[sel].sum() / l0[sel].sum() - 1.0),
+                       float(strain[long_].max()) if long_.any() else 0.0,
+                       float(maps["pressure_kpa"][verts].max()), limit)
+            out.append(row)
+        out += self._opening_rows(setup, pos, maps, limit)
+        return out
+
+    def _opening_rows(self, setup, pos, maps, limit):
+        """Rows of the garment's openings that go round a body part, at the draped position."""
+        from vfit_engine.body.segment import PARTS
+        from vfit_engine.garment.openings import check_openings
+
+        from vfit_engine.garment.garment import piece_labels
+
+        piece = piece_labels(setup.garment.mesh.n_verts, setup.garment.mesh.edges())
+        rows = []
+        for o in check_openings(setup.garment.mesh, self.body_verts, setup.body_tris, pos=pos):
+            loop = o["indices"]
+            draped = float(np.linalg.norm(pos[loop] - np.roll(pos[loop], -1, axis=0), axis=1).sum())
+            rest = o["rest_length_mm"] / 1000.0
+            part = None
+            if setup.body_parts is not None:
+                near = int(np.argmin(np.linalg.norm(self.body_verts - pos[loop].mean(axis=0), axis=1)))
+                k = int(setup.body_parts[near])
+                part = PARTS[k] if k >= 0 else None
+            name, side = _opening_name(part, pos[piece == piece[loop[0]]], pos[loop], self.chest_y)
+            row = _row(name, side, o["body_tape_mm"] / 1000.0, draped, draped / rest - 1.0 if rest > 0 else 0.0,
+                       float(maps["strain"][loop].max()), float(maps["pressure_kpa"][loop].max()), limit,
+                       need=o["required_strain"])
+            rows.append(row)
+        return rows
+
+
+def _opening_name(part, piece, loop, chest_y):
+    """(name, side) of an opening ``loop`` (L, 3) m of the garment piece ``piece`` (k, 3) m round body
+    ``part``: sleeve hem, leg hem, neckline (a top's opening above the chest plane ``chest_y``), waistband
+    or hem."""
+    side = ""
+    if part and part.endswith((".L", ".R")):
+        side = "left" if part.endswith(".L") else "right"
+    base = (part or "").split(".")[0]
+    if base in ("upperarm", "lowerarm", "hand"):
+        return "sleeve hem", side
+    if base in ("thigh", "shin", "foot"):
+        return "leg hem", side
+    if base in ("neck", "head"):
+        return "neckline", ""
+    # round the torso: a waistband when the garment hangs below it, a hem when it rises above it
+    y = loop[:, 1].mean()
+    if np.mean(piece[:, 1] > y) > 0.5:
+        return "hem", ""
+    return ("neckline" if y > chest_y else "waistband"), ""
+
+
+def _row(name, side, body_m, garment_m, girth_strain, max_strain, pressure, limit, need=None):
+    """One row of the table with its verdict (module docstring)."""
+    ease_cm = 100.0 * (garment_m - body_m)
+    tight = girth_strain > TIGHT_SHARE * limit or max_strain > limit or (need is not None and need > 0)
+    loose_at = LOOSE_EASE_CM["opening" if need is not None else name]
+    verdict = "tight" if tight else ("loose" if ease_cm > loose_at else "fitted")
+    row = dict(region=f"{side} {name}".strip(), body_girth_cm=round(100.0 * body_m, 2),
+               garment_girth_cm=round(100.0 * garment_m, 2), ease_cm=round(ease_cm, 2),
+               girth_strain=round(girth_strain, 5), max_strain=round(max_strain, 5),
+               pressure_kpa_max=round(pressure, 3), verdict=verdict, key=name in KEY_REGIONS)
+    if need is not None:
+        row["required_strain"] = round(float(need), 5)
+    return row
+
+
+def fit_table(setup, pos, model=None, maps=None):
+    """The fit table (module docstring) of a drape of ``setup`` ending at ``pos`` (n, 3) m."""
+    return FitTable(setup.body, model).rows(setup, pos, maps)
+
+
+def summary_line(rows):
+    """One line for people, e.g. ``tight at the sleeve hems (+19 %, the body needs >= 17 %), fitted at the chest
+    and waist, loose at the hips (+13 cm ease)``; tight regions say how far the cloth round them is
+    stretched (and an opening the stretch the body forces on it), loose ones their ease."""
+    groups = {"tight": {}, "fitted": {}, "loose": {}}
+    for r in rows:
+        words = r["region"].split(" ", 1)
+        base = words[1] if words[0] in ("left", "right") and len(words) > 1 else r["region"]
+        figure = r["girth_strain"] if r["verdict"] == "tight" else r["ease_cm"]
+        g = groups[r["verdict"]].setdefault(base, [0, -np.inf, 0.0])
+        g[0] += 1
+        g[1] = max(g[1], figure)
+        g[2] = max(g[2], r.get("required_strain", 0.0))
+    parts = []
+    for verdict, g in groups.items():
+        if not g:
+            continue
+        names = []
+        for base, (count, figure, need) in g.items():
+            label = _plural(base) if count > 1 else base
+            if verdict == "tight":
+                label += f" (+{100 * figure:.0f} %" + (f", the body needs >= {100 * need:.0f} %)" if need > 0 else ")")
+            elif verdict == "loose":
+                label += f" (+{figure:.0f} cm ease)"
+            names.append(label)
+        joined = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+        parts.append(f"{verdict} at the {joined}" if verdict != "fitted" else f"fitted at the {joined}")
+    return ", ".join(parts) if parts else "no region the garment goes round"
+
+
+def _plural(name):
+    return {"hips": "hips", "bust": "bust", "chest": "chest", "waist": "waist"}.get(name, name + "s")

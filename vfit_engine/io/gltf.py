@@ -1,0 +1,260 @@
+"""Binary glTF 2.0 (``.glb``) scene writer: body and garment in one file any 3D tool opens.
+
+One node and one mesh per part, named after the part, in metres, Y up (vfit's frame is glTF's:
+nothing is converted); each mesh is one indexed triangle primitive (polygons fan-triangulated)
+with POSITION, smooth NORMAL, TEXCOORD_0 if the mesh has UVs, COLOR_0 if colours are given, and a
+plain metallic-roughness material.
+
+Why a hand-written writer and not trimesh's exporter: a trimesh mesh holds either a texture
+visual (UVs) or a colour visual, not both, and the drape scene needs a garment's UVs *and* its
+fit-map colours. glTF itself is simple enough: a JSON chunk and a BIN chunk, each padded to 4
+bytes; every attribute here is a 4-byte component type, so every accessor starts aligned.
+
+Conventions the caller should know:
+
+- glTF wants one UV per vertex, so a vertex used with several UVs (a seam) is split into one
+  glTF vertex per distinct (vertex, UV) pair; positions, normals and colours are copied to the
+  copies, so seams stay invisible. Normals are computed before the split, on the polygon mesh.
+- Corners without a UV (``face_uvs == -1``) get UV (0, 0); a viewer then samples one texel there,
+  which is harmless for the untextured materials written here.
+- glTF's V axis points down the image (origin top-left), OBJ's up: TEXCOORD_0 is (u, 1 - v).
+- glTF vertex colours and material colours are *linear*; the sRGB colours given are converted,
+  so a viewer shows them as given. They are stored as float VEC3 (exact, read by Blender and
+  three.js). With colours, the material's base colour is white, since glTF multiplies the two.
+"""
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from vfit_engine.errors import InputError
+from vfit_engine.geometry import vertex_normals
+from vfit_engine.io.atomic import atomic_write
+
+_FLOAT, _UINT = 5126, 5125  # glTF componentType codes
+_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
+_TRIANGLES = 4
+#: Default material colours (sRGB): skin for the body, a light grey-blue fabric for anything else.
+_SKIN_SRGB = (0.87, 0.70, 0.60)
+_FABRIC_SRGB = (0.60, 0.64, 0.75)
+
+
+class ScenePart(NamedTuple):
+    """One named mesh of a scene (a plain tuple ``(name, mesh, verts, colors)`` works too).
+
+    Attributes
+    ----------
+    name : str
+        Node and mesh name shown by viewers, e.g. ``"body"``, ``"garment"``.
+    mesh : MeshData
+        Topology, UVs (``uvs`` (t, 2), ``face_uvs`` (k,) with -1 for none) and default positions.
+    verts : (n, 3) float, metres, or None
+        Positions written instead of ``mesh.verts`` (same count and order), e.g. a draped state.
+    colors : (n, 3) float sRGB in [0, 1] or (n, 3) uint8, or None
+        Per-vertex colours (a fit map); None uses ``mesh.colors`` if the mesh has any.
+    base_color : (3,) float sRGB or None
+        Material colour without vertex colours; None: skin for ``"body"``, fabric otherwise.
+    double_sided : bool or None
+        None: single-sided for ``"body"`` (a closed surface), double-sided otherwise, because a
+        garment is an open surface whose inside shows through its openings.
+    """
+
+    name: str
+    mesh: object
+    verts: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    base_color: tuple | None = None
+    double_sided: bool | None = None
+
+
+def write_scene_glb(path, parts):
+    """Write ``parts`` as one binary glTF 2.0 scene, atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file, conventionally ``*.glb``.
+    parts : sequence of ScenePart or of tuples ``(name, mesh[, verts[, colors]])``
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    InputError
+        ``glb part 'garment': <problem>`` for non-finite positions, UVs or colours, indices out of
+        range, a mesh without triangles or colours of the wrong shape; no file is written then.
+    """
+    parts = [ScenePart(*p) for p in parts]
+    if not parts:
+        raise InputError("glb scene: no parts to write")
+    # validate and build every part before opening the file: a bad part leaves nothing behind
+    buf = _Buffer()
+    doc = {"asset": {"version": "2.0", "generator": "vfit"}, "scene": 0,
+           "scenes": [{"nodes": list(range(len(parts)))}], "nodes": [], "meshes": [], "materials": []}
+    for i, part in enumerate(parts):
+        attributes, indices = _part_arrays(part)
+        acc = {key: buf.add(arr, _ARRAY_BUFFER, bounds=key == "POSITION") for key, arr in attributes.items()}
+        prim = {"attributes": acc, "indices": buf.add(indices, _ELEMENT_ARRAY_BUFFER),
+                "material": i, "mode": _TRIANGLES}
+        doc["nodes"].append({"name": part.name, "mesh": i})
+        doc["meshes"].append({"name": part.name, "primitives": [prim]})
+        doc["materials"].append(_material(part, "COLOR_0" in attributes))
+    doc.update(buf.json_fields())
+    data = _glb_bytes(doc, buf.data())
+    path = Path(path)
+    with atomic_write(path, "wb") as f:
+        f.write(data)
+    return path
+
+
+def _part_arrays(part):
+    """Validate one part; return ({attribute: float32 (N, c)}, uint32 (3T,) indices)."""
+    name, mesh = part.name, part.mesh
+
+    def bad(problem):
+        return InputError(f"glb part {name!r}: {problem}")
+
+    verts = mesh.verts if part.verts is None else part.verts
+    verts = np.asarray(verts, dtype=np.float64)
+    n = mesh.n_verts
+    if verts.shape != (n, 3):
+        raise bad(f"positions have shape {verts.shape}, the mesh needs ({n}, 3)")
+    if not np.all(np.isfinite(verts)):
+        raise bad("positions contain NaN or infinity")
+    fv = mesh.face_verts
+    if fv.size and (fv.min() < 0 or fv.max() >= n):
+        raise bad(f"face vertex index out of range 0..{n - 1}")
+    tri = mesh.triangles()
+    if tri.shape[0] == 0:
+        raise bad("mesh is empty (no triangles)")
+    colors = _linear_colors(part, n, bad)
+    normals = vertex_normals(verts, fv, mesh.face_offsets)
+    # glTF requires unit normals: a vertex on no face or on degenerate faces gets +Y
+    normals[np.linalg.norm(normals, axis=1) == 0] = (0.0, 1.0, 0.0)
+
+    src, uv, tri = _split_seams(mesh, tri, bad)
+    attributes = {"POSITION": verts[src], "NORMAL": normals[src]}
+    if uv is not None:
+        attributes["TEXCOORD_0"] = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)
+    if colors is not None:
+        attributes["COLOR_0"] = colors[src]
+    attributes = {k: np.ascontiguousarray(a, dtype=np.float32) for k, a in attributes.items()}
+    return attributes, np.ascontiguousarray(tri, dtype=np.uint32).ravel()
+
+
+def _split_seams(mesh, tri, bad):
+    """One glTF vertex per distinct (vertex, UV) pair of the triangle corners.
+
+    Returns
+    -------
+    src : (N,) int64
+        Source vertex of every glTF vertex; ``arange(n)`` without UVs (order kept).
+    uv : (N, 2) float64 or None
+        UV of every glTF vertex (OBJ convention, V up); (0, 0) for corners without one.
+    tri : (T, 3) int64
+        Triangles over the glTF vertices.
+    """
+    n = mesh.n_verts
+    if mesh.uvs is None or mesh.face_uvs is None:
+        return np.arange(n), None, tri
+    uvs = np.asarray(mesh.uvs, dtype=np.float64).reshape(-1, 2)
+    t = uvs.shape[0]
+    if mesh.face_uvs.shape != mesh.face_verts.shape:
+        raise bad(f"face_uvs has {mesh.face_uvs.size} corners, faces have {mesh.face_verts.size}")
+    if mesh.face_uvs.size and (mesh.face_uvs.min() < -1 or mesh.face_uvs.max() >= t):
+        raise bad(f"face UV index out of range -1..{t - 1}")
+    if not np.all(np.isfinite(uvs)):
+        raise bad("UVs contain NaN or infinity")
+    tri_uv = mesh.triangle_uvs()
+    # a vertex no face uses is kept (with no UV) so every source vertex appears at least once
+    unused = np.setdiff1d(np.arange(n), tri)
+    vert = np.concatenate([tri.ravel(), unused])
+    uv_id = np.concatenate([tri_uv.ravel(), np.full(unused.size, -1)])
+    # key sorts by vertex, then UV: glTF vertices come in source order, seam copies adjacent
+    keys = vert * (t + 1) + (uv_id + 1)
+    uniq, inverse = np.unique(keys, return_inverse=True)
+    src, uv_of = uniq // (t + 1), uniq % (t + 1) - 1
+    uv = np.zeros((src.size, 2))
+    has = uv_of >= 0
+    uv[has] = uvs[uv_of[has]]
+    return src, uv, inverse.ravel()[: tri.size].reshape(-1, 3)
+
+
+def _linear_colors(part, n, bad):
+    """(n, 3) float64 linear colours of a part, or None."""
+    colors = part.colors if part.colors is not None else getattr(part.mesh, "colors", None)
+    if colors is None:
+        return None
+    colors = np.asarray(colors)
+    if colors.shape != (n, 3):
+        raise bad(f"colours have shape {colors.shape}, the mesh needs ({n}, 3)")
+    if colors.dtype == np.uint8:
+        srgb = colors / 255.0
+    else:
+        srgb = colors.astype(np.float64)
+        if not np.all(np.isfinite(srgb)) or srgb.min() < 0.0 or srgb.max() > 1.0:
+            raise bad("float colours must be finite and in [0, 1] (sRGB)")
+    return _srgb_to_linear(srgb)
+
+
+def _srgb_to_linear(c):
+    """Linear values of sRGB colours in [0, 1] (IEC 61966-2-1 transfer function)."""
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _material(part, has_colors):
+    """A metallic-roughness material: skin or fabric colour, white under vertex colours."""
+    body = part.name == "body"
+    srgb = part.base_color if part.base_color is not None else (_SKIN_SRGB if body else _FABRIC_SRGB)
+    rgb = [1.0, 1.0, 1.0] if has_colors else [float(x) for x in _srgb_to_linear(srgb)]
+    double = (not body) if part.double_sided is None else bool(part.double_sided)
+    return {"name": f"{part.name}_material", "doubleSided": double,
+            "pbrMetallicRoughness": {"baseColorFactor": rgb + [1.0], "metallicFactor": 0.0,
+                                     "roughnessFactor": 0.6 if body else 0.9}}
+
+
+class _Buffer:
+    """The BIN chunk under construction: one bufferView and one accessor per array."""
+
+    def __init__(self):
+        self.chunks, self.views, self.accessors, self.length = [], [], [], 0
+
+    def add(self, arr, target, bounds=False):
+        """Append a float32 (N, c) or uint32 (N,) array; return its accessor index."""
+        raw = arr.tobytes()
+        self.views.append({"buffer": 0, "byteOffset": self.length, "byteLength": len(raw), "target": target})
+        # every component here is 4 bytes, so views (and accessors at offset 0) stay 4-aligned
+        self.chunks.append(raw)
+        self.length += len(raw)
+        kind = "SCALAR" if arr.ndim == 1 else f"VEC{arr.shape[1]}"
+        acc = {"bufferView": len(self.views) - 1, "byteOffset": 0, "count": int(arr.shape[0]), "type": kind,
+               "componentType": _UINT if arr.dtype == np.uint32 else _FLOAT}
+        if bounds:  # the spec requires min/max on POSITION, exactly the float32 values written
+            acc["min"] = [float(x) for x in arr.min(axis=0)]
+            acc["max"] = [float(x) for x in arr.max(axis=0)]
+        self.accessors.append(acc)
+        return len(self.accessors) - 1
+
+    def data(self):
+        return b"".join(self.chunks)
+
+    def json_fields(self):
+        return {"buffers": [{"byteLength": self.length}], "bufferViews": self.views, "accessors": self.accessors}
+
+
+def _glb_bytes(doc, bin_data):
+    """The GLB container: 12-byte header, JSON chunk (space-padded), BIN chunk (zero-padded)."""
+    js = json.dumps(doc, separators=(",", ":")).encode("utf-8")
+    js += b" " * ((-len(js)) % 4)
+    bin_data += b"\0" * ((-len(bin_data)) % 4)
+    total = 12 + 8 + len(js) + 8 + len(bin_data)
+    return b"".join([struct.pack("<4sII", b"glTF", 2, total),
+                     struct.pack("<I4s", len(js), b"JSON"), js,
+                     struct.pack("<I4s", len(bin_data), b"BIN\0"), bin_data])
