@@ -187,3 +187,31 @@ def test_sleeve_hems_of_the_female_suit_are_tight(tmp_path):
     assert report["fit_summary"].startswith("tight at the sleeve hems")
     assert "the body needs >= " in report["fit_summary"]
     assert {row["region"]: row["verdict"] for row in report["fit"]}["bust"] != "tight"
+
+
+@pytest.mark.parametrize("name, value, other", [("ease", 50.0, 0.0), ("pressure", 0.0, 4.0), ("strain", 0.15, -0.15)])
+def test_preview_garment_pixels_take_the_maps_colour(name, value, other):
+    """A garment whose map is one value everywhere is drawn in that value's colour of the map (shaded: the
+    pixels' hue, not their brightness, is compared), and a different value gives a different picture."""
+    from vfit_engine.fit.outputs import PICTURE_MAPS, map_colours
+    from vfit_engine.preview import render_image
+
+    spec = PICTURE_MAPS[name]
+    verts, faces = tube(0.15, 32, 8, 0.6)
+    mesh = mesh_from_faces(verts, faces)
+    n = len(verts)
+
+    def draw(v):
+        return render_image(None, None, verts, mesh.triangles(), np.full(n, v), label=spec["label"],
+                            unit=spec["unit"], cmap=spec["cmap"], vmin=spec["vmin"], vmax=spec["vmax"],
+                            views=("front",), size=(600, 400)).astype(float) / 255.0
+
+    img = draw(value)
+    want = map_colours({spec["key"]: np.array([value])}, name)[0]
+    px = img.reshape(-1, 3)
+    lit = px[(px.max(axis=1) > 0.05) & (np.ptp(px, axis=1) > 0.05)]  # coloured pixels, not white/grey/black
+    chroma = lambda c: (c - c.mean(axis=-1, keepdims=True)) / (np.linalg.norm(c - c.mean(axis=-1, keepdims=True),
+                                                                              axis=-1, keepdims=True) + 1e-9)
+    match = np.linalg.norm(chroma(lit) - chroma(want), axis=1) < 0.15
+    assert match.sum() > 0.05 * img.shape[0] * img.shape[1]
+    assert np.abs(draw(other) - img).max() > 0.2
