@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vfit_engine import preview
+from vfit_engine import preview, preview_text
 from vfit_engine.errors import InputError
 from vfit_engine.kernels.raster import downsample, rasterize
 from vfit_engine.preview import COLOUR_MAPS, colour_map, render_image, render_views, value_range
@@ -171,13 +171,13 @@ def test_viridis_map_spans_the_data_or_the_given_range():
 
 
 def test_bar_ticks_are_in_the_given_unit():
-    bar = preview._bar_texts("strain", "%", -0.15, 0.15, np.array([-0.02, 0.183]))
+    bar = preview_text.bar_texts("strain", "%", -0.15, 0.15, np.array([-0.02, 0.183]))
     assert [t for _, t in bar["ticks"]] == ["-15 %", "-10 %", "-5 %", "0 %", "5 %", "10 %", "15 %"]
     assert bar["ticks"][0][0] == pytest.approx(-0.15)  # positions stay in the values' units
     assert bar["notes"] == ["max 18.3 %", "min -2.0 %"] and bar["beyond_high"] and not bar["beyond_low"]
-    bar = preview._bar_texts("ease", "mm", 0.0, 37.0, np.array([0.0, 37.0]))
+    bar = preview_text.bar_texts("ease", "mm", 0.0, 37.0, np.array([0.0, 37.0]))
     assert [t for _, t in bar["ticks"]] == ["0 mm", "10 mm", "20 mm", "30 mm"]
-    bar = preview._bar_texts("pressure", "kPa", 0.0, 1.3, np.array([0.0, 1.3]))
+    bar = preview_text.bar_texts("pressure", "kPa", 0.0, 1.3, np.array([0.0, 1.3]))
     assert [t for _, t in bar["ticks"]][:3] == ["0.00 kPa", "0.25 kPa", "0.50 kPa"]
 
 
@@ -278,7 +278,7 @@ def test_text_falls_back_to_the_bitmap_font(monkeypatch):
         return ImageFont.load_default_imagefont()
 
     monkeypatch.setattr(ImageFont, "load_default", bitmap_only)
-    preview._font.cache_clear()
+    preview_text.font.cache_clear()
     try:
         body_v, body_t = _cylinder(0.15, 0.0, 1.6, 16, 5)
         img = render_image(body_v, body_t, *_cylinder(0.16, 0.6, 1.2, 16, 3), views=("front",), size=(400, 400))
@@ -286,7 +286,7 @@ def test_text_falls_back_to_the_bitmap_font(monkeypatch):
         ink = (bottom.sum(axis=2) < 200) & (np.ptp(bottom, axis=2) < 10)
         assert ink.sum() > 20
     finally:
-        preview._font.cache_clear()
+        preview_text.font.cache_clear()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -343,3 +343,139 @@ def test_bad_input_raises_a_one_line_input_error(tmp_path, change, words):
 def test_unwritable_path_raises_input_error(tmp_path):
     with pytest.raises(InputError, match="cannot write"):
         render_views(tmp_path / "missing" / "p.png", **_good())
+
+
+# ---------------------------------------------------------------------------------------------
+# animated GIFs
+
+def _gif_frames(path):
+    """(size, [(h, w, 3) uint8 frames], info) of a GIF file."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        size, info, frames = im.size, dict(im.info), []
+        for k in range(im.n_frames):
+            im.seek(k)
+            frames.append(np.asarray(im.convert("RGB")))
+    return size, frames, info
+
+
+def _gif_blocks(data):
+    """(has a global colour table, [has a local colour table] per image) from a GIF's bytes (GIF89a spec)."""
+    def table(packed):
+        return 3 * 2 ** ((packed & 7) + 1) if packed & 0x80 else 0
+
+    def skip_sub_blocks(i):
+        while data[i]:
+            i += data[i] + 1
+        return i + 1
+
+    assert data[:6] == b"GIF89a"
+    i = 13 + table(data[10])
+    images = []
+    while data[i] != 0x3B:  # trailer
+        if data[i] == 0x21:  # extension: label, then sub-blocks
+            i = skip_sub_blocks(i + 2)
+        else:
+            assert data[i] == 0x2C  # image descriptor: position, size, packed; table; LZW code size
+            images.append(bool(data[i + 9] & 0x80))
+            i = skip_sub_blocks(i + 10 + table(data[i + 9]) + 1)
+    return bool(data[10] & 0x80), images
+
+
+def _falling_cloth(n_frames, drop=0.3):
+    """A cylinder of cloth around the body lowered by ``drop`` metres over the frames."""
+    cloth_v, cloth_t = _cylinder(0.17, 0.9, 1.3, 24, 5)
+    return [cloth_v - [0.0, d, 0.0] for d in np.linspace(0.0, drop, n_frames)], cloth_t
+
+
+def test_gif_has_every_frame_its_size_and_loops(tmp_path):
+    from vfit_engine.animation import write_gif
+
+    body_v, body_t = _cylinder(0.15, 0.0, 1.6, 32, 9)
+    frames, cloth_t = _falling_cloth(7)
+    strain = np.linspace(-0.1, 0.1, len(frames[0]))
+    out = write_gif(tmp_path / "drape.gif", body_v, body_t, frames, cloth_t, strain, size=(420, 360), fps=10)
+    size, pictures, info = _gif_frames(out)
+    assert size == (420, 360) and len(pictures) == 7 and len(_gif_blocks(out.read_bytes())[1]) == 7
+    assert info["loop"] == 0 and info["duration"] == 100
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drape.gif"]  # no temporary file left
+
+
+def test_gif_garment_moves_on_a_still_body_with_one_palette(tmp_path):
+    from vfit_engine.animation import write_gif
+
+    body_v, body_t = _cylinder(0.15, 0.0, 1.6, 32, 9)
+    frames, cloth_t = _falling_cloth(5, drop=0.3)
+    out = write_gif(tmp_path / "d.gif", body_v, body_t, frames, cloth_t, size=(400, 400),
+                    view=("front", "side"))
+    _, pictures, _ = _gif_frames(out)
+    cloth = [_skin_and_cloth(p)[1] for p in pictures]
+    rows = [np.flatnonzero(c.any(axis=1)) for c in cloth]
+    # the cloth goes down the picture (rows grow downwards) by about its drop: a fixed camera
+    assert rows[-1].mean() - rows[0].mean() > 30
+    assert abs(cloth[0].sum() - cloth[-1].sum()) < 0.1 * cloth[0].sum()  # same cloth, moved, not zoomed
+    # the body where the cloth never is (the top of the picture) keeps its pixels: no jump, no flicker
+    top = slice(0, rows[0].min() - 2)
+    for p in pictures[1:]:
+        np.testing.assert_array_equal(p[top], pictures[0][top])
+    assert _skin_and_cloth(pictures[0][top])[0].sum() > 200
+    # one palette: the global colour table, and no frame brings its own
+    assert _gif_blocks(out.read_bytes()) == (True, [False] * 5)
+
+
+def test_gif_values_per_frame_and_garment_alone(tmp_path):
+    from vfit_engine.animation import render_frames, write_gif
+
+    frames, cloth_t = _falling_cloth(3)
+    values = np.stack([np.full(len(frames[0]), v) for v in (0.0, 5.0, 10.0)])
+    pictures = list(render_frames(None, None, np.stack(frames), cloth_t, values, cmap="viridis", unit="mm",
+                                  label="ease", size=(300, 300), labels=["a", "b", "c"]))
+    assert len(pictures) == 3 and pictures[0].shape == (300, 300, 3)
+    # one range for all frames: the cloth's colour changes from frame to frame (dark purple to yellow)
+    first, last = pictures[0][:, :200].reshape(-1, 3).astype(int), pictures[-1][:, :200].reshape(-1, 3).astype(int)
+    assert (first[:, 2] - first[:, 1] > 60).sum() > 500 and (last[:, 0] - last[:, 2] > 100).sum() > 500
+    out = write_gif(tmp_path / "a.gif", None, None, frames, cloth_t, size=(300, 300))
+    assert len(_gif_frames(out)[1]) == 3
+
+
+def _gif_args():
+    body_v, body_t = _cylinder(0.15, 0.0, 1.6, 16, 5)
+    frames, cloth_t = _falling_cloth(3)
+    return dict(body_verts=body_v, body_tris=body_t, frames=frames, garment_tris=cloth_t)
+
+
+GIF_BAD = [
+    (lambda a: {"frames": []}, "non-empty"),
+    (lambda a: {"frames": 5}, "non-empty"),
+    (lambda a: {"frames": [a["frames"][0], a["frames"][1][:-1]]}, "frames[1] has"),
+    (lambda a: {"frames": [a["frames"][0], np.full_like(a["frames"][1], np.nan)]}, "non-finite"),
+    (lambda a: {"frames": [a["frames"][0][:, :2]]}, "(n, 3)"),
+    (lambda a: {"frames": [a["frames"][0]] * 1001}, "at most 1000"),
+    (lambda a: {"garment_tris": a["garment_tris"] + 10000}, "outside"),
+    (lambda a: {"values": np.zeros((2, len(a["frames"][0])))}, "one number per garment vertex"),
+    (lambda a: {"fps": 0}, "fps"),
+    (lambda a: {"fps": "fast"}, "fps"),
+    (lambda a: {"labels": ["one"]}, "labels"),
+    (lambda a: {"view": "top"}, "views"),
+    (lambda a: {"size": (100, 100)}, "size"),
+]
+
+
+@pytest.mark.parametrize("change, words", GIF_BAD, ids=[w for _, w in GIF_BAD])
+def test_gif_bad_input_raises_and_leaves_no_file(tmp_path, change, words):
+    from vfit_engine.animation import write_gif
+
+    args = _gif_args()
+    args.update(change(args))
+    with pytest.raises(InputError) as err:
+        write_gif(tmp_path / "bad.gif", **args)
+    assert words in str(err.value) and "\n" not in str(err.value)
+    assert not list(tmp_path.iterdir())
+
+
+def test_gif_unwritable_path_raises_input_error(tmp_path):
+    from vfit_engine.animation import write_gif
+
+    with pytest.raises(InputError, match="cannot write"):
+        write_gif(tmp_path / "missing" / "d.gif", **_gif_args())

@@ -9,27 +9,29 @@ Projection is orthographic with the same scale (pixels per metre) in every view,
 be compared between views. Meshes are in metres, Y up, +Z the body's front, +X the body's left.
 Shading is a key light from the viewer's upper left (fixed to the camera, so every view is lit
 alike) plus ambient light; triangles are lit on both sides because garments are open surfaces.
-Drawing is a plain z-buffer in float64 (:mod:`vfit_engine.kernels.raster`) with 2 x 2
-supersampling: the garment hides the body only where it is nearer to the viewer.
+Drawing is a plain z-buffer in float64 (:mod:`vfit_engine.kernels.raster`) with 3 x 3
+supersampling: the garment hides the body only where it is nearer to the viewer. Text, layout
+and the colour bar's frame are in :mod:`vfit_engine.preview_text`; :mod:`vfit_engine.animation`
+draws frames of a drape with the same pieces.
 
 Importing this module is cheap; numba and Pillow are imported when a picture is made.
 """
 from __future__ import annotations
 
-import functools
-import math
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
+from vfit_engine import preview_text as text
 from vfit_engine.errors import InputError
+from vfit_engine.preview_text import TEXT_RGB  # noqa: F401  (part of the colour scheme's names)
 
 #: Colour of the body (sRGB in [0, 1]).
 SKIN_RGB = (0.92, 0.80, 0.72)
 #: Colour of the garment when no values are given: the strain map's colour at zero strain.
 CLOTH_RGB = (0.25, 0.45, 0.85)
 BACKGROUND_RGB = (1.0, 1.0, 1.0)
-TEXT_RGB = (0.1, 0.1, 0.1)
 
 #: Colour maps: name -> (stop positions in [0, 1], (k, 3) sRGB stops, default (vmin, vmax) or None).
 #:
@@ -70,8 +72,9 @@ VIEWS["side"] = VIEWS["left"]
 #: share of the shade.
 _LIGHT = np.array([-0.5, 0.6, 0.7]) / np.linalg.norm([-0.5, 0.6, 0.7])
 _AMBIENT = 0.25
-#: Samples per pixel along each axis (antialiasing by supersampling).
-_SUPERSAMPLE = 2
+#: Samples per pixel along each axis (antialiasing by supersampling): 3 x 3 gives silhouettes ten
+#: coverage levels instead of five at 2 x 2, for about 80 ms more on 1500 x 750 (BENCHMARKS.md).
+_SUPERSAMPLE = 3
 #: Empty border around the meshes in each view, as a fraction of the view's size.
 _PAD = 0.03
 #: Largest coordinate accepted, in metres (a body in millimetres or centimetres is refused).
@@ -153,42 +156,25 @@ def render_image(body_verts, body_tris, garment_verts, garment_tris, values=None
 
     Arguments as in :func:`render_views`.
     """
-    from PIL import Image
-
-    _colour_map_entry(cmap)  # a misspelt map is an error even when values is None
-    width, height = _check_size(size)
-    meshes = _check_meshes(body_verts, body_tris, garment_verts, garment_tris)
-    rotations, captions = _check_views(views)
-    if shading not in ("gouraud", "flat"):
-        raise InputError(f"shading must be 'gouraud' or 'flat', not {shading!r}")
-    if not isinstance(unit, str) or not isinstance(label, str):
-        raise InputError("label and unit must be strings")
-    bar = None
-    garment_rgb = np.tile(np.asarray(CLOTH_RGB), (meshes[-1][0].shape[0], 1))
-    if values is not None:
-        vals = _check_values(values, meshes[-1][0].shape[0])
-        lo, hi = value_range(vals, cmap, vmin, vmax)
-        garment_rgb = colour_map(vals, cmap, lo, hi)
-        bar = _bar_texts(label, unit, lo, hi, vals)
-    meshes[-1] = (*meshes[-1][:2], garment_rgb)
-
-    lay = _layout(width, height, len(rotations), title, bar)
-    panels = _render_panels(meshes, rotations, zoom, lay["panel_w"], lay["panel_h"], shading)
-    canvas = np.empty((height, width, 3))
+    scene = _check_scene(body_verts, body_tris, garment_verts, garment_tris, cmap=cmap, size=size,
+                         views=views, shading=shading, label=label, unit=unit)
+    gv = scene.meshes[-1][0]
+    rgb, bar, lo, hi = _garment_colours(values, gv.shape[0], cmap, vmin, vmax, label, unit)
+    lay = text.layout(scene.width, scene.height, len(scene.rotations), title, bar)
+    meshes = [(v, t, c, _normals(v, t, shading)) for (v, t), c in zip(scene.meshes, [*scene.colours, rgb])]
+    framing = _framing([v for v, _ in scene.meshes], scene.rotations, zoom, lay["panel_w"], lay["panel_h"])
+    canvas = np.empty((scene.height, scene.width, 3))
     canvas[:] = BACKGROUND_RGB
-    for x0, panel in zip(lay["panel_x"], panels):
+    ss = _SUPERSAMPLE
+    image = np.empty((lay["panel_h"] * ss, lay["panel_w"] * ss, 3))
+    depth = np.empty((lay["panel_h"] * ss, lay["panel_w"] * ss))
+    panel = np.empty((lay["panel_h"], lay["panel_w"], 3))
+    for view, x0 in enumerate(lay["panel_x"]):
+        depth[:] = -np.inf
+        _draw_meshes(meshes, framing, view, ss, shading, image, depth)
+        _resolve(image, depth, ss, panel)
         canvas[lay["top"]:lay["top"] + lay["panel_h"], x0:x0 + lay["panel_w"]] = panel
-    if bar is not None:
-        _paint_bar_gradient(canvas, lay["bar_box"], cmap, lo, hi)
-    img = Image.fromarray(_to_uint8(canvas), "RGB")
-    fs = lay["font_px"]
-    if title:
-        _put_text(img, title, lay["title_px"], width // 2, lay["margin"], "centre")
-    for x0, caption in zip(lay["panel_x"], captions):
-        _put_text(img, caption, fs, x0 + lay["panel_w"] // 2, lay["caption_y"], "centre")
-    if bar is not None:
-        _draw_bar_frame(img, lay["bar_box"], bar, fs, cmap, lo, hi)
-    return np.array(img)
+    return _decorate(canvas, lay, scene.captions, title, bar, cmap, lo, hi)
 
 
 def colour_map(values, cmap="strain", vmin=None, vmax=None):
@@ -282,20 +268,59 @@ def _check_tris(name, tris, n_verts):
     return t
 
 
+class _Scene(NamedTuple):
+    """What the checks hand on: picture size, meshes and views, all converted once."""
+
+    width: int
+    height: int
+    meshes: list  # [(verts (n, 3) float64, tris (m, 3) int64)]: the body (if any), the garment last
+    colours: list  # [(n, 3) float64 sRGB] of the meshes before the garment (the skin)
+    rotations: list  # (3, 3) float64 world -> view per view
+    captions: list
+
+
+def _check_scene(body_verts, body_tris, garment_verts, garment_tris, *, cmap, size, views, shading, label,
+                 unit):
+    """Check and convert everything but the values (see :func:`render_views` for the arguments)."""
+    _colour_map_entry(cmap)  # a misspelt map is an error even when values is None
+    width, height = _check_size(size)
+    meshes = _check_meshes(body_verts, body_tris, garment_verts, garment_tris)
+    rotations, captions = _check_views(views)
+    if shading not in ("gouraud", "flat"):
+        raise InputError(f"shading must be 'gouraud' or 'flat', not {shading!r}")
+    if not isinstance(unit, str) or not isinstance(label, str):
+        raise InputError("label and unit must be strings")
+    skin = [np.tile(np.asarray(SKIN_RGB), (v.shape[0], 1)) for v, _ in meshes[:-1]]
+    return _Scene(width, height, meshes, skin, rotations, captions)
+
+
+def _garment_colours(values, n_verts, cmap, vmin, vmax, label, unit, n_frames=None):
+    """(rgb (n_verts, 3) or (n_frames, n_verts, 3), bar texts or None, lo, hi) of the garment.
+
+    ``values``: None (plain cloth colour, no bar), (n_verts,) or, for an animation of
+    ``n_frames``, (n_frames, n_verts) values whose common range sets the colours of every frame.
+    """
+    if values is None:
+        return np.tile(np.asarray(CLOTH_RGB), (n_verts, 1)), None, 0.0, 1.0
+    vals = _check_values(values, n_verts, n_frames)
+    lo, hi = value_range(vals.ravel(), cmap, vmin, vmax)
+    rgb = colour_map(vals.ravel(), cmap, lo, hi).reshape(*vals.shape, 3)
+    return rgb, text.bar_texts(label, unit, lo, hi, vals), lo, hi
+
+
 def _check_meshes(body_verts, body_tris, garment_verts, garment_tris):
-    """[(verts, tris, rgb)] of the body (unless None) and the garment (last, rgb None)."""
+    """[(verts, tris)] of the body (unless None) and the garment (last)."""
     meshes = []
     if (body_verts is None) != (body_tris is None):
         raise InputError("give both body_verts and body_tris, or neither")
     if body_verts is not None:
         bv = _check_verts("body_verts", body_verts)
-        bt = _check_tris("body_tris", body_tris, bv.shape[0])
-        meshes.append((bv, bt, np.tile(np.asarray(SKIN_RGB), (bv.shape[0], 1))))
+        meshes.append((bv, _check_tris("body_tris", body_tris, bv.shape[0])))
     gv = _check_verts("garment_verts", garment_verts)
     gt = _check_tris("garment_tris", garment_tris, gv.shape[0])
     if gt.shape[0] == 0:
         raise InputError("the garment has no triangles")
-    meshes.append((gv, gt, None))
+    meshes.append((gv, gt))
     return meshes
 
 
@@ -309,13 +334,16 @@ def _check_views(views):
     return [np.array(VIEWS[v][0], dtype=np.float64) for v in views], [VIEWS[v][1] for v in views]
 
 
-def _check_values(values, n_verts):
+def _check_values(values, n_verts, n_frames=None):
+    """(n_verts,) float64 values; with ``n_frames`` also (n_frames, n_verts), one row per frame."""
     try:
         vals = np.ascontiguousarray(values, dtype=np.float64)
     except (TypeError, ValueError):
         raise InputError("values must be an array of numbers, one per garment vertex") from None
-    if vals.shape != (n_verts,):
-        raise InputError(f"values must have one number per garment vertex ({n_verts}), got shape {vals.shape}")
+    if vals.shape != (n_verts,) and (n_frames is None or vals.shape != (n_frames, n_verts)):
+        rows = "" if n_frames is None else f" (or a row of them per frame, {n_frames})"
+        raise InputError(f"values must have one number per garment vertex ({n_verts}){rows}, got shape "
+                         f"{vals.shape}")
     bad = int(np.count_nonzero(~np.isfinite(vals)))
     if bad:
         raise InputError(f"values has {bad} non-finite entries (NaN or inf)")
@@ -350,16 +378,25 @@ def _face_normals(verts, tris):
     return n / np.where(norm > 0, norm, 1.0)
 
 
-def _render_panels(meshes, rotations, zoom, panel_w, panel_h, shading):
-    """One (panel_h, panel_w, 3) float64 sRGB image per view, all at the same pixels per metre.
+class _Framing(NamedTuple):
+    """Orthographic cameras: ``x_pix = (x_view - centres[k]) * scale + panel_w / 2`` and
+    ``y_pix = (cy - y) * scale + panel_h / 2``, in pixels of the final picture."""
 
-    Each view is centred on the meshes' horizontal extent (within the height range) and the scale
-    is the largest at which every view fits its panel.
+    scale: float  # pixels per metre, the same in every view
+    centres: list  # horizontal view coordinate (m) at each panel's middle
+    cy: float  # height (m) at the panels' middle
+    rotations: list
+    panel_w: int
+    panel_h: int
+
+
+def _framing(verts_list, rotations, zoom, panel_w, panel_h):
+    """The cameras that fit every vertex of ``verts_list`` (within the height range) in every panel.
+
+    Each view is centred on the meshes' horizontal extent and the scale is the largest at which
+    every view fits its panel; an animation passes every frame so that the picture does not jump.
     """
-    from vfit_engine.geometry import vertex_normals
-    from vfit_engine.kernels.raster import downsample, rasterize
-
-    all_v = np.concatenate([m[0] for m in meshes])
+    all_v = np.concatenate(verts_list)
     y0, y1 = _height_range(all_v, zoom)
     framed = all_v[(all_v[:, 1] >= y0) & (all_v[:, 1] <= y1)]
     scale = panel_h * (1 - 2 * _PAD) / (y1 - y0)
@@ -369,164 +406,74 @@ def _render_panels(meshes, rotations, zoom, panel_w, panel_h, shading):
         centres.append(0.5 * (x.min() + x.max()))
         if x.max() > x.min():
             scale = min(scale, panel_w * (1 - 2 * _PAD) / (x.max() - x.min()))
-    cy, ss = 0.5 * (y0 + y1), _SUPERSAMPLE
+    return _Framing(scale, centres, 0.5 * (y0 + y1), rotations, panel_w, panel_h)
+
+
+def _normals(verts, tris, shading):
+    """Vertex normals (gouraud) or face normals (flat) of a mesh."""
     if shading == "gouraud":
-        normals = [vertex_normals(v, t) for v, t, _ in meshes]
-    else:
-        normals = [_face_normals(v, t) for v, t, _ in meshes]
-    image = np.empty((panel_h * ss, panel_w * ss, 3))
-    depth = np.empty((panel_h * ss, panel_w * ss))
-    panels = []
-    for rot, cx in zip(rotations, centres):
-        depth[:] = -np.inf
-        for (v, t, rgb), nrm in zip(meshes, normals):
-            xyz = v @ rot.T
-            xyz[:, 0] = (xyz[:, 0] - cx) * (scale * ss) + 0.5 * panel_w * ss
-            xyz[:, 1] = (cy - xyz[:, 1]) * (scale * ss) + 0.5 * panel_h * ss
-            # n_view . light = n . (rot^T light); abs: both sides of the cloth are lit
-            shade = _AMBIENT + (1 - _AMBIENT) * np.abs(nrm @ (rot.T @ _LIGHT))
-            if shading == "gouraud":
-                colours, gain = rgb * shade[:, None], np.ones(t.shape[0])
-            else:
-                colours, gain = np.ascontiguousarray(rgb), shade
-            rasterize(xyz, t, colours, gain, image, depth)
-        panels.append(np.empty((panel_h, panel_w, 3)))
-        downsample(image, depth, np.asarray(BACKGROUND_RGB, dtype=np.float64), ss, panels[-1])
-    return panels
+        from vfit_engine.geometry import vertex_normals
+
+        return vertex_normals(verts, tris)
+    return _face_normals(verts, tris)
+
+
+def _draw_meshes(meshes, framing, view, ss, shading, image, depth):
+    """Rasterize meshes [(verts, tris, rgb, normals)] as seen in ``view`` into the sample buffers.
+
+    ``image`` (panel_h ss, panel_w ss, 3) and ``depth`` (panel_h ss, panel_w ss) are drawn over,
+    not cleared: a still clears ``depth`` once per view, an animation draws the body once and each
+    frame's garment over it. Returns the rows and columns ``(r0, r1, c0, c1)`` (end exclusive,
+    within the buffers) the meshes' vertices span: all that the drawing can have changed.
+    """
+    from vfit_engine.kernels.raster import rasterize
+
+    rot, f = framing.rotations[view], framing.scale * ss
+    light = rot.T @ _LIGHT  # n_view . light = n . (rot^T light)
+    h, w = depth.shape
+    box = [h, 0, w, 0]
+    for v, t, rgb, nrm in meshes:
+        xyz = v @ rot.T
+        xyz[:, 0] = (xyz[:, 0] - framing.centres[view]) * f + 0.5 * framing.panel_w * ss
+        xyz[:, 1] = (framing.cy - xyz[:, 1]) * f + 0.5 * framing.panel_h * ss
+        shade = _AMBIENT + (1 - _AMBIENT) * np.abs(nrm @ light)  # abs: both sides of the cloth are lit
+        if shading == "gouraud":
+            colours, gain = rgb * shade[:, None], np.ones(t.shape[0])
+        else:
+            colours, gain = np.ascontiguousarray(rgb), shade
+        rasterize(xyz, t, colours, gain, image, depth)
+        lo, hi = np.floor(xyz[:, :2].min(axis=0)), np.ceil(xyz[:, :2].max(axis=0)) + 1
+        box = [min(box[0], max(0, int(lo[1]))), max(box[1], min(h, int(hi[1]))),
+               min(box[2], max(0, int(lo[0]))), max(box[3], min(w, int(hi[0])))]
+    return tuple(box)
+
+
+def _resolve(image, depth, ss, panel_out):
+    """Average the samples into the (panel_h, panel_w, 3) panel; empty samples are background."""
+    from vfit_engine.kernels.raster import downsample
+
+    downsample(image, depth, np.asarray(BACKGROUND_RGB, dtype=np.float64), ss, panel_out)
 
 
 def _to_uint8(rgb):
     return (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
-# ---------------------------------------------------------------------------------------------
-# layout, text and the colour bar
+def _decorate(canvas, lay, captions, title, bar, cmap, lo, hi):
+    """The (h, w, 3) uint8 picture: the float canvas with the bar's gradient, texts and the bar's frame."""
+    from PIL import Image
 
-def _layout(width, height, n_views, title, bar):
-    """Pixel positions of everything, from the picture size and the texts to fit."""
-    fs = max(11, round(0.026 * min(height, width / 2)))  # caption font: 20 px at 1500 x 750
-    margin = max(4, fs // 2)
-    lay = dict(font_px=fs, title_px=round(1.3 * fs), margin=margin)
-    lay["top"] = margin + (_line_height(lay["title_px"]) + margin if title else 0)
-    caption_h = _line_height(fs) + margin // 2
-    bar_col = _bar_column_width(bar, fs) + margin if bar else 0
-    area_w = width - 2 * margin - bar_col
-    panel_w, panel_h = area_w // n_views, height - lay["top"] - caption_h - margin
-    if panel_w < 40 or panel_h < 40:
-        raise InputError(f"a {width} x {height} picture is too small for {n_views} views")
-    left = margin + (area_w - panel_w * n_views) // 2
-    lay.update(panel_w=panel_w, panel_h=panel_h, caption_y=lay["top"] + panel_h + margin // 4,
-               panel_x=[left + k * panel_w for k in range(n_views)])
-    if bar:
-        bar_h = round(0.6 * panel_h)
-        x0, y0 = width - margin - bar_col + margin, lay["top"] + (panel_h - bar_h) // 2
-        lay["bar_box"] = (x0, y0, x0 + fs, y0 + bar_h)
-    return lay
-
-
-@functools.lru_cache(maxsize=8)
-def _font(px):
-    """(font, enlargement): Pillow's scalable default font, else its small bitmap font enlarged."""
-    from PIL import ImageFont
-
-    try:
-        return ImageFont.load_default(size=px), 1
-    except (TypeError, ImportError, OSError):  # Pillow < 10.1, or a build without FreeType
-        return ImageFont.load_default(), max(1, round(px / 11))
-
-
-def _text_mask(text, px):
-    """The text as a white-on-black 'L' image, one line high (same height for every text)."""
-    from PIL import Image, ImageDraw
-
-    font, k = _font(px)
-    if hasattr(font, "getmetrics"):
-        ascent, descent = font.getmetrics()
-        size = (max(1, math.ceil(font.getlength(text))), ascent + descent)
-    else:
-        size = (max(1, font.getbbox(text)[2]), font.getbbox("Ag")[3] + 1)
-    mask = Image.new("L", size, 0)
-    ImageDraw.Draw(mask).text((0, 0), text, fill=255, font=font)
-    if k > 1:
-        mask = mask.resize((size[0] * k, size[1] * k), Image.NEAREST)
-    return mask
-
-
-def _line_height(px):
-    return _text_mask("Ag", px).size[1]
-
-
-def _put_text(img, text, px, x, y, align="left", valign="top"):
-    """Draw ``text`` on the PIL image with (x, y) its top-left, top-centre or left-middle point."""
-    mask = _text_mask(text, px)
-    w, h = mask.size
-    x0 = x - (w // 2 if align == "centre" else 0)
-    y0 = y - (h // 2 if valign == "middle" else 0)
-    img.paste(tuple(int(round(255 * c)) for c in TEXT_RGB), (x0, y0, x0 + w, y0 + h), mask)
-
-
-def _nice_step(span):
-    """(step, decimals): a 1, 2, 2.5 or 5 times 10^k tick step giving about six intervals."""
-    raw = span / 6.0
-    mag = 10.0 ** math.floor(math.log10(raw))
-    mult = next(m for m in (1.0, 2.0, 2.5, 5.0, 10.0) if m * mag >= raw * (1 - 1e-9))
-    step = mult * mag
-    decimals = max(0, -math.floor(math.log10(step) + 1e-9) + (1 if mult == 2.5 else 0))
-    return step, decimals
-
-
-def _format(x, decimals, unit):
-    s = f"{x:.{decimals}f}"
-    if float(s) == 0.0:
-        s = s.lstrip("-")
-    return f"{s} {unit}" if unit else s
-
-
-def _bar_texts(label, unit, lo, hi, vals):
-    """Heading, ticks (value, text), notes (data min/max) and end markers of the colour bar."""
-    f = 100.0 if unit == "%" else 1.0  # "%": the values are fractions
-    step, dec = _nice_step((hi - lo) * f)
-    k0, k1 = math.ceil(lo * f / step - 1e-9), math.floor(hi * f / step + 1e-9)
-    return dict(
-        heading=f"{label} ({unit})" if unit else label,
-        ticks=[(k * step / f, _format(k * step, dec, unit)) for k in range(k0, k1 + 1)],
-        notes=[f"max {_format(vals.max() * f, dec + 1, unit)}",
-               f"min {_format(vals.min() * f, dec + 1, unit)}"],
-        beyond_high=bool(vals.max() > hi), beyond_low=bool(vals.min() < lo))
-
-
-def _bar_column_width(bar, fs):
-    ticks = max(_text_mask(t, fs).size[0] for _, t in bar["ticks"]) if bar["ticks"] else 0
-    texts = [_text_mask(t, fs).size[0] for t in [bar["heading"], *bar["notes"]]]
-    return max(fs + fs // 3 + fs // 4 + ticks, *texts)
-
-
-def _paint_bar_gradient(canvas, box, cmap, lo, hi):
-    x0, y0, x1, y1 = box
-    rows = hi - (np.arange(y1 - y0) + 0.5) / (y1 - y0) * (hi - lo)
-    canvas[y0:y1, x0:x1] = colour_map(rows, cmap, lo, hi)[:, None, :]
-
-
-def _draw_bar_frame(img, box, bar, fs, cmap, lo, hi):
-    """Outline, ticks and labels of the bar; a triangle at an end the values go beyond."""
-    from PIL import ImageDraw
-
-    x0, y0, x1, y1 = box
-    draw, ink = ImageDraw.Draw(img), tuple(int(round(255 * c)) for c in TEXT_RGB)
-    draw.rectangle((x0 - 1, y0 - 1, x1, y1), outline=ink)
-    tri = fs * 3 // 4
-    ends = _to_uint8(colour_map(np.array([lo, hi]), cmap, lo, hi))
-    if bar["beyond_high"]:
-        draw.polygon([(x0 - 1, y0 - 2), (x1, y0 - 2), ((x0 + x1) / 2, y0 - 2 - tri)],
-                     fill=tuple(ends[1]), outline=ink)
-    if bar["beyond_low"]:
-        draw.polygon([(x0 - 1, y1 + 1), (x1, y1 + 1), ((x0 + x1) / 2, y1 + 1 + tri)],
-                     fill=tuple(ends[0]), outline=ink)
-    for value, text in bar["ticks"]:
-        y = round(y0 + (hi - value) / (hi - lo) * (y1 - y0))
-        draw.line((x1, y, x1 + fs // 3, y), fill=ink)
-        _put_text(img, text, fs, x1 + fs // 3 + fs // 4, y, valign="middle")
-    line = _line_height(fs)
-    _put_text(img, bar["heading"], fs, x0, y0 - tri - fs // 2 - line)
-    for k, note in enumerate(bar["notes"]):
-        _put_text(img, note, fs, x0, y1 + tri + fs // 2 + k * line)
+    if bar is not None:
+        x0, y0, x1, y1 = lay["bar_box"]
+        rows = hi - (np.arange(y1 - y0) + 0.5) / (y1 - y0) * (hi - lo)
+        canvas[y0:y1, x0:x1] = colour_map(rows, cmap, lo, hi)[:, None, :]
+    img = Image.fromarray(_to_uint8(canvas), "RGB")
+    fs = lay["font_px"]
+    if title:
+        text.put_text(img, title, lay["title_px"], canvas.shape[1] // 2, lay["margin"], "centre")
+    for x0, caption in zip(lay["panel_x"], captions):
+        text.put_text(img, caption, fs, x0 + lay["panel_w"] // 2, lay["caption_y"], "centre")
+    if bar is not None:
+        ends = _to_uint8(colour_map(np.array([lo, hi]), cmap, lo, hi))
+        text.draw_bar_frame(img, lay["bar_box"], bar, fs, lo, hi, ends)
+    return np.array(img)

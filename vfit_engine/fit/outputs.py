@@ -14,7 +14,7 @@ from vfit_engine.fit.maps import MAP_UNITS
 #: ``--map`` name -> the fit map drawn, the colour bar's label and unit, the colour map and its range.
 PICTURE_MAPS = {
     "strain": dict(key="strain", label="yarn strain", unit="%", cmap="strain", vmin=None, vmax=None),
-    "ease": dict(key="ease_mm", label="ease (distance from the skin)", unit="mm", cmap="viridis", vmin=0.0,
+    "ease": dict(key="ease_mm", label="ease from the skin", unit="mm", cmap="viridis", vmin=0.0,
                  vmax=50.0),
     "pressure": dict(key="pressure_kpa", label="contact pressure", unit="kPa", cmap="viridis", vmin=0.0, vmax=4.0),
 }
