@@ -9,7 +9,7 @@ import sys
 
 import click
 
-from . import drape, measure, morph, segment, transfer
+from . import drape, measure, morph, segment, size, transfer
 from ._common import Terminated, interruption
 
 
@@ -62,6 +62,7 @@ cli.add_command(measure.measure)
 cli.add_command(drape.drape)
 cli.add_command(segment.segment)
 cli.add_command(transfer.transfer)
+cli.add_command(size.size)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -21,7 +21,8 @@ yarn strain there, edges >= 3 mm), ``pressure_kpa_max`` (:mod:`.maps`) and the v
 
 * ``tight``  the cloth round the region is stretched by more than ``TIGHT_SHARE`` of the stretch the
   fabric gives (``Material.max_strain``: cotton 10 % -> 3 %, jersey 30 % -> 9 %, denim 5 % -> 1.5 %),
-  or an edge there beyond it, or (an opening) the body forces it wider than it is made;
+  or (an opening) the body forces it wider than it is made (one edge beyond the fabric's limit does not
+  make a region tight: ``too_tight`` in the report lists those by body part);
 * ``loose``  not tight, and more than ``LOOSE_EASE_CM`` of the region's ease (bust, chest, underbust,
   waist, hips 12 cm; neck 6; upper arm 8; thigh 10; openings 10);
 * ``fitted`` otherwise.
@@ -36,6 +37,8 @@ from vfit_engine.fit.maps import fit_maps
 
 #: Half-width of the band round a region's plane whose edges give its strain, m.
 BAND = 0.02
+#: A garment's loop round the torso counts within the torso's half width plus this, m (not its sleeves).
+TORSO_MARGIN = 0.03
 #: An edge runs round the region when its direction is within 60 degrees of the plane.
 ROUND_COS = 0.5
 #: Tight beyond this share of the fabric's stretch limit (module docstring).
@@ -74,9 +77,11 @@ class _Plane:
         c = self.rot @ self.centre
         self.height, self.centre_xz = float(c[1]), c[[0, 2]]
 
-    def loops_round(self, sections, verts, reach):
+    def loops_round(self, sections, verts, reach, half_width=None):
         """Hulls (point arrays, perimeter, equations) of the section loops that go round the centre,
-        none of whose points lies farther than ``reach`` (m) from it, outermost first."""
+        none of whose points lies farther than ``reach`` (m) from it, outermost first. With ``half_width``
+        (m) the hull takes only the loop's points within it of the centre across (x): a loose top's loop
+        at the chest runs out along the sleeves, which are no part of the chest."""
         from vfit_engine.geometry import winding_number
 
         out = []
@@ -84,6 +89,8 @@ class _Plane:
             if len(loop) < 3 or np.max(np.linalg.norm(loop - self.centre_xz, axis=1)) > reach:
                 continue
             if abs(winding_number(loop, self.centre_xz)) > 0.5:
+                if half_width is not None:
+                    loop = loop[np.abs(loop[:, 0] - self.centre_xz[0]) <= half_width]
                 h = _hull(loop)
                 if h is not None:
                     out.append(h)
@@ -143,23 +150,26 @@ class FitTable:
         for name in TORSO:
             if name == "underbust" and not female:
                 continue
-            plane = _Plane(self._torso_centre(m.planes[name]), (0.0, 1.0, 0.0))
+            centre, half = self._torso_centre(m.planes[name])
             label = "chest" if name == "bust" and not female else name
-            self.regions.append((label, "", plane, 1.0, float(m.values[name])))
+            self.regions.append((label, "", _Plane(centre, (0.0, 1.0, 0.0)), 1.0, float(m.values[name]), half))
         for name, side, plane, reach in _limb_planes(model, self.body_verts):
             loops = plane.loops_round(self.measurer.sections, self.body_verts, reach)
             if loops:
-                self.regions.append((name, side, plane, reach, loops[-1][1]))
+                self.regions.append((name, side, plane, reach, loops[-1][1], None))
 
     def _torso_centre(self, y):
-        """Centre (3,) of the torso loop's hull at height ``y`` (the largest loop spanning x = 0)."""
+        """Centre (3,) of the torso loop's hull at height ``y`` (the largest loop spanning x = 0) and the
+        half width (m) across which a garment's loop counts there: the torso's, plus ``TORSO_MARGIN``."""
         best = None
         for loop in self.measurer.sections.loops(self.body_verts, y):
             h = _hull(loop)
             if h is not None and loop[:, 0].min() <= 0.0 <= loop[:, 0].max() and (best is None or h[1] > best[1]):
                 best = h
-        c = best[0].mean(axis=0) if best is not None else np.zeros(2)
-        return np.array([c[0], y, c[1]])
+        if best is None:
+            return np.array([0.0, y, 0.0]), None
+        c = best[0].mean(axis=0)
+        return np.array([c[0], y, c[1]]), float(np.abs(best[0][:, 0] - c[0]).max()) + TORSO_MARGIN
 
     def rows(self, setup, pos, maps=None):
         """The table (module docstring) of ``setup``'s garment at ``pos``: list of dict."""
@@ -174,8 +184,8 @@ class FitTable:
         length = np.linalg.norm(pos[edges[:, 1]] - pos[edges[:, 0]], axis=1)
         limit = float(setup.material.max_strain)
         out = []
-        for name, side, plane, reach, body_girth in self.regions:
-            loops = plane.loops_round(sections, pos, max(reach, 3.0 * body_girth / (2 * np.pi)))
+        for name, side, plane, reach, body_girth, half in self.regions:
+            loops = plane.loops_round(sections, pos, max(reach, 3.0 * body_girth / (2 * np.pi)), half)
             if not loops:
                 continue  # the garment does not go round this region
             hull, girth, eq = loops[0]
@@ -242,7 +252,7 @@ def _opening_name(part, piece, loop, chest_y):
 def _row(name, side, body_m, garment_m, girth_strain, max_strain, pressure, limit, need=None):
     """One row of the table with its verdict (module docstring)."""
     ease_cm = 100.0 * (garment_m - body_m)
-    tight = girth_strain > TIGHT_SHARE * limit or max_strain > limit or (need is not None and need > 0)
+    tight = girth_strain > TIGHT_SHARE * limit or (need is not None and need > 0)
     loose_at = LOOSE_EASE_CM["opening" if need is not None else name]
     verdict = "tight" if tight else ("loose" if ease_cm > loose_at else "fitted")
     row = dict(region=f"{side} {name}".strip(), body_girth_cm=round(100.0 * body_m, 2),
@@ -267,7 +277,7 @@ def summary_line(rows):
     for r in rows:
         words = r["region"].split(" ", 1)
         base = words[1] if words[0] in ("left", "right") and len(words) > 1 else r["region"]
-        figure = r["girth_strain"] if r["verdict"] == "tight" else r["ease_cm"]
+        figure = max(r["girth_strain"], 0.0) if r["verdict"] == "tight" else r["ease_cm"]
         g = groups[r["verdict"]].setdefault(base, [0, -np.inf, 0.0])
         g[0] += 1
         g[1] = max(g[1], figure)

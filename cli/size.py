@@ -1,0 +1,144 @@
+"""``vfit size``: which size of a garment to buy -- a size run graded from it, each size tried on the customer."""
+from types import SimpleNamespace
+
+import click
+
+from ._common import check_output_path, fmt_table, handle_errors, interruption, write_json
+from .drape import morph_options
+
+#: The sizes (``vfit_engine.fit.sizes.SIZE_NAMES``; listed here so --help imports no numpy).
+SIZE_NAMES = ("XS", "S", "M", "L", "XL")
+#: Exit code when no size could be judged (every drape diverged or failed), as a drape that did not converge.
+NOT_JUDGED = 3
+
+
+@click.command()
+@click.argument("garment", type=click.Path(dir_okay=False))
+@click.option("--body", "body_path", default=None, type=click.Path(dir_okay=False),
+              help="The customer's body (.obj/.ply with hm08 topology, e.g. from vfit morph). Default: the "
+                   "average body of the garment's gender, or one built from the measurement options.")
+@morph_options
+@click.option("--sizes", "sizes_text", default=",".join(SIZE_NAMES), show_default=True,
+              help="Comma-separated EN 13402 letter sizes to try.")
+@click.option("--material", default="cotton", show_default=True,
+              help="cotton, denim, silk, jersey, or a material .json file.")
+@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+              help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
+@click.option("--workers", type=click.IntRange(1, 256), default=None,
+              help="Sizes tried at once, each in its own process [default: the cores available].")
+@click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),
+              help="Also write the fit of every size and the recommendation as JSON.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress lines and no tables: only the recommendation.")
+@click.pass_context
+@handle_errors
+def size(ctx, garment, body_path, sizes_text, material, units, workers, json_path, quiet, gender, height, weight,
+         definition, **girths):
+    """Say which size of GARMENT (.obj/.ply) fits the customer, and why.
+
+    Makes a size run of the garment by grading it (made to measure) from the
+    body it was made on to bodies at the centre of each EN 13402 size (bust,
+    men: chest, with waist and hips; at the customer's height, since the
+    letter size is a girth size); the garment as given is the size whose
+    centre is nearest its own body (it says which). Each size is draped at its
+    own size on the customer's body, the sizes in parallel; it prints the fit
+    of every size (region, body and garment girth, ease, largest yarn strain,
+    verdict; * marks the key regions) and the recommended size.
+
+    The rule: the smallest size with no tight verdict at a key region
+    (chest/bust, waist, hips where the garment covers them); a tight cuff or
+    hem elsewhere does not change the size. If every size is tight there, the
+    largest, saying where it is tight. Exit 3 when no size could be judged
+    (every drape diverged or failed).
+
+    \b
+    Examples:
+      vfit size male_casualsuit02.obj --gender male --height 180 --bust 98
+      vfit size suit.obj --body customer.obj --sizes S,M,L --json fit.json
+    """
+    import os
+    import time
+
+    from vfit_engine.errors import InputError
+    from vfit_engine.fit.sizes import parse_sizes
+
+    t_start = time.perf_counter()
+    names = parse_sizes(sizes_text)
+    targets = {k.replace("_", "-"): v / 100.0 for k, v in girths.items() if v is not None}
+    if height is not None:
+        targets["height"] = height / 100.0
+    if body_path and (targets or weight is not None):
+        raise InputError("give either --body or measurement options, not both")
+    if not os.path.isfile(garment):
+        raise InputError(f"garment file not found: {garment}")
+    if body_path and not os.path.isfile(body_path):
+        raise InputError(f"body file not found: {body_path}")
+    if json_path:
+        check_output_path(json_path, (".json",))
+    gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
+    o = SimpleNamespace(garment=garment, names=names, material=material, units=units, workers=workers,
+                        json_path=json_path, quiet=quiet, t_start=t_start,
+                        customer=dict(path=body_path, targets=targets, weight_kg=weight,
+                                      gender=gender if gender_given else None, definition=definition))
+    try:
+        code = _size(o)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (the vfit group's)
+        name, code = interruption(exc)
+        click.echo(f"Error: interrupted by {name}; nothing written", err=True)
+    if code:
+        ctx.exit(code)
+
+
+def _size(o):
+    """The size command's work (``o``: the options); returns the exit code."""
+    import time
+
+    from vfit_engine.fit.sizes import try_sizes
+
+    def progress(text):
+        if not o.quiet:
+            click.echo(f"vfit size: {text} ({time.perf_counter() - o.t_start:.1f} s)", err=True)
+
+    res = try_sizes(o.garment, o.customer, sizes=o.names, workers=o.workers, progress=progress, units=o.units,
+                    material=o.material)
+    res["wall_s"] = round(time.perf_counter() - o.t_start, 3)
+    if not o.quiet:
+        _tables(res)
+    if o.json_path:
+        write_json(o.json_path, res)
+    if res["recommended"] is None:
+        click.echo(f"Error: {res['reason']}", err=True)
+        return NOT_JUDGED
+    click.echo(f"recommended size: {res['recommended']} -- {res['reason']}")
+    if o.json_path and not o.quiet:
+        click.echo(f"wrote {o.json_path}")
+    return 0
+
+
+def _tables(res):
+    """The fit of every size, as people read it."""
+    own, c = res["garment_size"], res["customer"]
+    chest = "chest" if res["gender"] == "male" else "bust"
+    click.echo(f"vfit size: {res['garment']}: the garment as given is size {own['size']} (made on a {own['measure']} "
+               f"of {own['body_cm']:.1f} cm; centre of {own['size']}: {own['centre_cm']} cm)")
+    click.echo(f"customer: {chest} {c['bust']:.1f}, waist {c['waist']:.1f}, hips {c['hips']:.1f}, height "
+               f"{c['height']:.1f} cm; sizes graded at that height; {len(res['sizes'])} sizes in "
+               f"{res['wall_s']:.1f} s on {res['workers']} process{'es' if res['workers'] > 1 else ''}")
+    head = ["region", "body cm", "garment cm", "ease cm", "max strain %", "verdict"]
+    for s in res["sizes"]:
+        cc = s["centre_cm"]
+        click.echo("")
+        title = (f"size {s['size']} ({chest} {cc['bust']:g}, waist {cc['waist']:g}, hips {cc['hips']:g} cm): "
+                 f"{s['status']}")
+        if s["status"] in ("settled", "not settled"):
+            title += f", {s['frames']} frames, {s['wall_s']:.1f} s"
+        if s.get("message"):
+            title += f" ({s['message']})"
+        click.echo(title)
+        if not s.get("fit"):
+            continue
+        rows = [[r["region"] + ("*" if r.get("key") else ""), f"{r['body_girth_cm']:.1f}",
+                 f"{r['garment_girth_cm']:.1f}", f"{r['ease_cm']:+.1f}", f"{100 * r['max_strain']:.1f}", r["verdict"]]
+                for r in s["fit"]]
+        click.echo("\n".join("  " + line for line in fmt_table(rows, head).splitlines()))
+        click.echo(f"  {s['summary']}")
+    click.echo("")
