@@ -28,11 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
 
-#: (size, bust/chest, waist, hips) in cm, mid-interval.
-SIZES = {
-    "female": [("XS", 78, 62, 86), ("S", 86, 70, 94), ("M", 94, 78, 102), ("L", 102, 86, 110), ("XL", 113, 95, 119)],
-    "male": [("XS", 82, 70, 84), ("S", 90, 78, 91), ("M", 98, 86, 98), ("L", 106, 94, 105), ("XL", 114, 102, 112)],
-}
+from vfit_engine.fit.sizes import SIZES  # noqa: E402  (size, bust/chest, waist, hips) in cm, mid-interval
 
 
 HEAD = ["garment", "size", "frames", "settled", "wall s", "surface in %", "deepest mm", "p99 strain %",
