@@ -43,6 +43,19 @@ def morph_options(func):
     return func
 
 
+def body_targets(body_path, girths, height, weight):
+    """The measurement targets (name -> m) of ``morph_options``' values (cm); InputError when a body file is
+    given with them."""
+    from vfit_engine.errors import InputError
+
+    targets = {k.replace("_", "-"): v / 100.0 for k, v in girths.items() if v is not None}
+    if height is not None:
+        targets["height"] = height / 100.0
+    if body_path and (targets or weight is not None):
+        raise InputError("give either --body or measurement options, not both")
+    return targets
+
+
 @click.command()
 @click.argument("garment", type=click.Path(dir_okay=False))
 @click.option("--body", "body_path", default=None, type=click.Path(dir_okay=False),
@@ -114,11 +127,7 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
     from vfit_engine.errors import InputError
 
     t_start = time.perf_counter()
-    targets = {k.replace("_", "-"): v / 100.0 for k, v in girths.items() if v is not None}
-    if height is not None:
-        targets["height"] = height / 100.0
-    if body_path and (targets or weight is not None):
-        raise InputError("give either --body or measurement options, not both")
+    targets = body_targets(body_path, girths, height, weight)
     if not os.path.isfile(garment):
         raise InputError(f"garment file not found: {garment}")
     check_outdir(outdir)

@@ -4,7 +4,7 @@ from types import SimpleNamespace
 import click
 
 from ._common import check_output_path, fmt_table, handle_errors, interruption, write_json
-from .drape import morph_options
+from .drape import body_targets, morph_options
 
 #: The sizes (``vfit_engine.fit.sizes.SIZE_NAMES``; listed here so --help imports no numpy).
 SIZE_NAMES = ("XS", "S", "M", "L", "XL")
@@ -63,11 +63,7 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
 
     t_start = time.perf_counter()
     names = parse_sizes(sizes_text)
-    targets = {k.replace("_", "-"): v / 100.0 for k, v in girths.items() if v is not None}
-    if height is not None:
-        targets["height"] = height / 100.0
-    if body_path and (targets or weight is not None):
-        raise InputError("give either --body or measurement options, not both")
+    targets = body_targets(body_path, girths, height, weight)
     if not os.path.isfile(garment):
         raise InputError(f"garment file not found: {garment}")
     if body_path and not os.path.isfile(body_path):

@@ -119,7 +119,7 @@ def _limb_planes(model, verts):
     return out
 
 
-def _round_edges(edges, rest, pos, plane, hull_eq, margin=0.01):
+def _round_edges(edges, pos, plane, hull_eq, margin=0.01):
     """Mask of the yarn edges that run round the region: both ends within ``BAND`` of the plane, the
     edge within 60 degrees of it, and its midpoint inside the garment's hull (+ ``margin``)."""
     a, b = pos[edges[:, 0]], pos[edges[:, 1]]
@@ -137,8 +137,10 @@ class FitTable:
 
     def __init__(self, body, model):
         from vfit_engine.body.measure import Measurer
+        from vfit_engine.garment.openings import BodyLoops
 
         self.measurer = Measurer(model)
+        model = self.measurer.model  # loaded by the Measurer when not given
         self.body_verts = np.ascontiguousarray(body.surface, dtype=np.float64)
         self.gender = body.gender
         m = self.measurer.measure(self.body_verts, names=TORSO, mass=False)
@@ -153,6 +155,8 @@ class FitTable:
             centre, half = self._torso_centre(m.planes[name])
             label = "chest" if name == "bust" and not female else name
             self.regions.append((label, "", _Plane(centre, (0.0, 1.0, 0.0)), 1.0, float(m.values[name]), half))
+        # the body's sections round the openings, built once for every drape on this body
+        self.loops = BodyLoops(self.body_verts, model.body_tris)
         for name, side, plane, reach in _limb_planes(model, self.body_verts):
             loops = plane.loops_round(self.measurer.sections, self.body_verts, reach)
             if loops:
@@ -189,7 +193,7 @@ class FitTable:
             if not loops:
                 continue  # the garment does not go round this region
             hull, girth, eq = loops[0]
-            sel = _round_edges(edges, mesh.verts, pos, plane, eq) & (l0 > 0)
+            sel = _round_edges(edges, pos, plane, eq) & (l0 > 0)
             if not sel.any():
                 continue
             strain = length[sel] / l0[sel] - 1.0
@@ -207,11 +211,9 @@ class FitTable:
         from vfit_engine.body.segment import PARTS
         from vfit_engine.garment.openings import check_openings
 
-        from vfit_engine.garment.garment import piece_labels
-
-        piece = piece_labels(setup.garment.mesh.n_verts, setup.garment.mesh.edges())
+        piece = setup.garment.pieces
         rows = []
-        for o in check_openings(setup.garment.mesh, self.body_verts, setup.body_tris, pos=pos):
+        for o in check_openings(setup.garment.mesh, self.body_verts, setup.body_tris, pos=pos, loops=self.loops):
             loop = o["indices"]
             draped = float(np.linalg.norm(pos[loop] - np.roll(pos[loop], -1, axis=0), axis=1).sum())
             rest = o["rest_length_mm"] / 1000.0
