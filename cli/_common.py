@@ -46,16 +46,12 @@ class Gender(click.ParamType):
         return "female|male|0..1"
 
     def convert(self, value, param, ctx):
-        text = str(value).strip().lower()
-        if text in ("female", "f", "male", "m"):
-            return "female" if text.startswith("f") else "male"
+        from vfit_engine.body.gender import parse_gender
+
         try:
-            x = float(text)
-        except ValueError:
-            self.fail(f"{value!r} is not female, male or a number in 0..1", param, ctx)
-        if not (math.isfinite(x) and 0.0 <= x <= 1.0):
-            self.fail(f"{value!r} is not in 0..1", param, ctx)
-        return x
+            return parse_gender(value)
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
 
 
 class Terminated(KeyboardInterrupt):

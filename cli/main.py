@@ -9,7 +9,7 @@ import sys
 
 import click
 
-from . import drape, measure, morph, segment, size, transfer
+from . import batch, drape, measure, morph, segment, size, transfer
 from ._common import Terminated, interruption
 
 
@@ -52,8 +52,8 @@ def cli():
 
     Lengths on the command line are centimetres, masses kilograms; meshes are
     written in metres, Y up. Exit codes: 0 ok, 2 bad input or unreachable
-    target, 3 not converged, 4 simulation diverged, 130 / 143 interrupted
-    (Ctrl-C / SIGTERM).
+    target, 3 not converged, 4 simulation diverged, 5 a batch with failed
+    tasks, 130 / 143 interrupted (Ctrl-C / SIGTERM).
     """
 
 
@@ -63,6 +63,7 @@ cli.add_command(drape.drape)
 cli.add_command(segment.segment)
 cli.add_command(transfer.transfer)
 cli.add_command(size.size)
+cli.add_command(batch.batch)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -41,6 +41,7 @@ import time
 
 import numpy as np
 
+from vfit_engine import process_cache
 from vfit_engine.errors import InputError, VfitError
 
 #: EN 13402-3 letter sizes: (size, bust/chest, waist, hips) in cm, the middle of each size's interval
@@ -187,31 +188,6 @@ def _customer_body(model, customer):
                         customer.get("gender") or "female", customer.get("definition", "iso"))
 
 
-#: Per worker process: the body model, loaded once.
-_WORKER = {}
-
-
-def _worker_model():
-    from vfit_engine.body.model import BodyModel
-
-    if "model" not in _WORKER:
-        _WORKER["model"] = BodyModel.load()
-    return _WORKER["model"]
-
-
-def _fit_table(model, body):
-    """The customer's FitTable (:class:`vfit_engine.fit.table.FitTable`: the body's planes and girths,
-    built once per process and customer)."""
-    from vfit_engine.fit.table import FitTable
-
-    import hashlib
-
-    key = hashlib.sha1(np.ascontiguousarray(body.verts).tobytes()).hexdigest()
-    if _WORKER.get("fit_key") != key:
-        _WORKER["fit_key"], _WORKER["fit_table"] = key, FitTable(body, model)
-    return _WORKER["fit_table"]
-
-
 def try_size(job):
     """Grade the garment to one size and drape it on the customer (one worker's job of :func:`try_sizes`).
 
@@ -246,7 +222,7 @@ def try_size(job):
         t[0] = now
 
     try:
-        model = job["model"] if job.get("model") is not None else _worker_model()
+        model = job["model"] if job.get("model") is not None else process_cache.model()
         lap("start")
         garment = load_garment(job["garment"], units=job.get("units", "auto"))
         body_x = size_body(model, job["gender"], job["size"], job.get("height_m"))
@@ -266,7 +242,7 @@ def try_size(job):
             return out
         finally:
             lap("drape")
-        rows = [_plain(r) for r in _fit_table(model, customer).rows(setup, result.pos)]
+        rows = [_plain(r) for r in process_cache.fit_table(model, customer).rows(setup, result.pos)]
         lap("fit")
         m = result.metrics
         out.update(status="settled" if result.converged else "not settled", fit=rows, summary=summary_line(rows),
@@ -300,19 +276,6 @@ def _pool_results(futures):
             yield f.result()
         except BrokenProcessPool as exc:
             yield _blank(futures[f], f"its worker process died ({exc})")
-
-
-def warm_up():
-    """Load what every job needs (the body model, the drape's modules, the cloth kernels from Numba's cache)
-    in a fresh worker process, while the parent still builds the customer's body."""
-    _worker_model()
-    import scipy.optimize  # noqa: F401  (the size body's solve)
-
-    from vfit_engine.body.morph import Morpher  # noqa: F401
-    from vfit_engine.drape import prepare_drape, run_drape  # noqa: F401
-    from vfit_engine.fit.table import fit_table  # noqa: F401
-    from vfit_engine.kernels import cloth  # noqa: F401
-    return os.getpid()
 
 
 def _num(x):
@@ -432,9 +395,9 @@ def try_sizes(garment_path, customer, sizes=None, workers=None, progress=None, u
 
 @contextlib.contextmanager
 def _worker_pool(n_workers):
-    """A pool of ``n_workers`` spawned processes with one Numba thread each, warmed up (:func:`warm_up`);
-    None for one worker (the jobs then run in this process). On an error or an interruption the workers
-    are ended at once, not waited for."""
+    """A pool of ``n_workers`` spawned processes with one Numba thread each, warmed up
+    (:func:`vfit_engine.process_cache.warm_up`); None for one worker (the jobs then run in this process).
+    On an error or an interruption the workers are ended at once, not waited for."""
     if n_workers <= 1:
         yield None
         return
@@ -451,7 +414,7 @@ def _worker_pool(n_workers):
         os.environ[key] = "1"
         try:
             for _ in range(n_workers):
-                pool.submit(warm_up)
+                pool.submit(process_cache.warm_up)
         finally:
             if before is None:
                 os.environ.pop(key, None)

@@ -1,0 +1,149 @@
+"""`vfit batch` on a real Dask cluster: tasks become rows, a bad garment fails alone, a re-run skips what is done,
+a customers CSV, a scheduler given by address, and a worker killed mid-task (SIGKILL) costing a retry, not a row."""
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from click.testing import CliRunner
+
+from vfit_cli.main import cli
+from vfit_engine.batch.job import load_job
+from vfit_engine.batch.runner import local_cluster, run_batch
+
+DEMO_SKIRT = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
+VERDICTS = {"tight", "fitted", "loose"}
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """Two worker processes, started once for the module (the scheduler-address test reaches it by address)."""
+    with local_cluster(2) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def client(cluster):
+    from distributed import Client
+
+    with Client(cluster, set_as_default=False) as c:
+        yield c
+
+
+@pytest.fixture
+def job_dir(tmp_path):
+    d = tmp_path / "job"
+    d.mkdir()
+    shutil.copy(DEMO_SKIRT, d / "skirt.obj")
+    return d
+
+
+def rows_of(outdir):
+    return pq.read_table(Path(outdir) / "results.parquet").to_pylist()
+
+
+def test_four_tasks_give_four_rows_and_a_rerun_runs_nothing(client, job_dir, tmp_path):
+    (job_dir / "job.yaml").write_text("garments:\n  - skirt.obj\n  - {path: skirt.obj, sizes: [M]}\n"
+                                      "bodies:\n  - {name: anna, gender: female, height: 168, waist: 72, hips: 98}\n"
+                                      "  - {gender: female}\n")
+    job = load_job(job_dir / "job.yaml")
+    seen = []
+    s = run_batch(job, tmp_path / "out", client=client, keep_meshes=True,
+                  on_task=lambda done, todo, row: seen.append((done, todo)))
+    rows = rows_of(tmp_path / "out")
+    assert len(rows) == 4 and {r["task_id"] for r in rows} == {t.id for t in job.tasks}
+    assert [r["status"] for r in rows] == ["ok"] * 4, [r["error"] for r in rows]
+    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)] and s.counts == {"ok": 4, "not_converged": 0, "failed": 0}
+    for r in rows:
+        assert r["surface_inside_percent"] <= 0.5 and r["surface_max_depth_mm"] <= 2.0
+        assert 0 < r["p99_strain"] < 0.05 and r["hips_verdict"] in VERDICTS and r["fit"]
+        assert r["worker"].startswith("tcp://") and r["task_s"] >= r["drape_s"] > 0
+    assert {r["size"] for r in rows} == {None, "M"} and all(r["grade_s"] > 0 for r in rows if r["size"])
+    from vfit_engine.io.mesh import read_mesh
+
+    n_verts = read_mesh(str(DEMO_SKIRT)).n_verts
+    for r in rows:  # --keep-meshes: the drape in metres with the garment's vertices, the body once per body
+        final = read_mesh(str(tmp_path / "out" / r["final_mesh"]))
+        assert final.n_verts == n_verts and 0.3 < np.ptp(final.verts[:, 1]) < 1.0
+        assert (tmp_path / "out" / r["body_mesh"]).is_file() and (tmp_path / "out" / r["final_mesh"]).with_name(
+            "fit.ply").is_file()
+    assert len(list((tmp_path / "out" / "bodies").glob("*.obj"))) == 2
+    # each body was built once for its two drapes (the same build time in both rows)
+    by = {}
+    for r in rows:
+        by.setdefault(r["body_key"], set()).add(r["body_s"])
+    assert len(by) == 2 and all(len(v) == 1 and min(v) > 0 for v in by.values()), by
+    # a re-run: nothing to do, so no cluster is even reached (this address has none)
+    again = run_batch(job, tmp_path / "out", scheduler="tcp://127.0.0.1:9")
+    assert again.ran == 0 and again.skipped == 4 and len(rows_of(tmp_path / "out")) == 4
+
+
+def test_a_bad_garment_fails_alone(client, job_dir, tmp_path):
+    (job_dir / "bad.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
+    (job_dir / "job.yaml").write_text("garments: [bad.obj, skirt.obj]\nbodies: [{gender: female}]\n")
+    s = run_batch(load_job(job_dir / "job.yaml"), tmp_path / "out", client=client)
+    rows = {r["garment_name"]: r for r in rows_of(tmp_path / "out")}
+    assert rows["bad"]["status"] == "failed" and "bad.obj" in rows["bad"]["error"], rows["bad"]["error"]
+    assert rows["skirt"]["status"] == "ok" and s.counts["failed"] == 1
+    assert s.failures[0][0].startswith("bad on ")
+
+
+def test_customers_csv_through_the_cli_on_a_scheduler_by_address(cluster, job_dir, tmp_path):
+    (job_dir / "customers.csv").write_text("customer,gender,height,waist,hips\nc1,female,165,70,96\n"
+                                           "c2,female,172,,100\n")
+    (job_dir / "job.yaml").write_text("garments: [skirt.obj]\nbodies: customers.csv\n")
+    out = tmp_path / "out"
+    r = CliRunner().invoke(cli, ["batch", str(job_dir / "job.yaml"), "-o", str(out), "--scheduler",
+                                 cluster.scheduler_address])
+    assert r.exit_code == 0, r.output
+    assert "2 tasks: 2 ok, 0 not converged, 0 failed; ran 2" in r.output
+    rows = rows_of(out)
+    assert sorted(r["body"] for r in rows) == ["c1", "c2"] and all(r["status"] == "ok" for r in rows)
+    hips = {r["body"]: next(f for f in r["fit"] if f["region"] == "hips")["body_girth_cm"] for r in rows}
+    assert abs(hips["c1"] - 96.0) < 0.15 and abs(hips["c2"] - 100.0) < 0.15  # the bodies asked for
+    assert (out / "summary.json").is_file()
+
+
+def _worker_pids(parent):
+    import psutil
+
+    return [p.pid for p in psutil.Process(parent).children()
+            if "spawn_main" in " ".join(p.cmdline()) and "resource_tracker" not in " ".join(p.cmdline())]
+
+
+def test_a_worker_killed_mid_task_costs_a_retry_not_a_row(job_dir, tmp_path):
+    """The acceptance run: 2 garments x 3 bodies on 2 workers, one worker SIGKILLed while both drape."""
+    (job_dir / "job.yaml").write_text(
+        "garments: [skirt.obj, {path: skirt.obj, material: jersey}]\n"
+        "bodies: [{gender: female}, {gender: female, waist: 70, hips: 97}, {gender: female, height: 160}]\n")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "vfit_cli.main", "batch", str(job_dir / "job.yaml"), "-o", str(out),
+           "--workers", "2"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 240
+        while not list((out / "results.parquet").glob("part-*")) and time.monotonic() < deadline:
+            time.sleep(0.2)  # the first row: both workers are busy now (one on its next task)
+        pids = _worker_pids(proc.pid)
+        assert len(pids) == 2 and proc.poll() is None, (pids, proc.poll())
+        os.kill(pids[0], signal.SIGKILL)
+        killed = time.time()
+        stdout, stderr = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, stderr
+    rows = rows_of(out)
+    assert len(rows) == 6 and len({r["task_id"] for r in rows}) == 6 and {r["status"] for r in rows} == {"ok"}
+    assert not any(r["pid"] == pids[0] and r["finished_at"].timestamp() > killed for r in rows)
+    t = time.perf_counter()
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    assert again.returncode == 0 and "nothing to run" in again.stderr and time.perf_counter() - t < 15
+    assert len(rows_of(out)) == 6
