@@ -25,3 +25,14 @@ def morpher(body_model, measurer):
     from vfit_engine.body.morph import Morpher
 
     return Morpher(body_model, measurer)
+
+
+@pytest.fixture
+def skirt_dir(tmp_path):
+    """A folder with a copy of vfit's demo skirt (``skirt.obj``), for job files that name it."""
+    import shutil
+
+    d = tmp_path / "job"
+    d.mkdir()
+    shutil.copy(Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj", d / "skirt.obj")
+    return d

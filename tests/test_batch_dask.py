@@ -1,7 +1,6 @@
 """`vfit batch` on a real Dask cluster: tasks become rows, a bad garment fails alone, a re-run skips what is done,
 a customers CSV, a scheduler given by address, and a worker killed mid-task (SIGKILL) costing a retry, not a row."""
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -39,11 +38,8 @@ def client(cluster):
 
 
 @pytest.fixture
-def job_dir(tmp_path):
-    d = tmp_path / "job"
-    d.mkdir()
-    shutil.copy(DEMO_SKIRT, d / "skirt.obj")
-    return d
+def job_dir(skirt_dir):
+    return skirt_dir
 
 
 def rows_of(outdir):

@@ -13,7 +13,6 @@ from vfit_engine.batch.results import SCHEMA, ResultStore, flat_row
 from vfit_engine.batch.task import run_task
 from vfit_engine.errors import InputError
 
-DEMO_SKIRT = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
 
 
 def write_job(folder, text, name="job.yaml"):
@@ -24,10 +23,8 @@ def write_job(folder, text, name="job.yaml"):
 
 
 @pytest.fixture
-def job_dir(tmp_path):
-    d = tmp_path / "job"
-    d.mkdir()
-    shutil.copy(DEMO_SKIRT, d / "skirt.obj")
+def job_dir(skirt_dir):
+    d = skirt_dir
     (d / "customers.csv").write_text("Name,Gender,Height,Waist,Hips,Weight\nanna,female,168,72,98,\n"
                                      "bert,m,180,,,80\n")
     return d
