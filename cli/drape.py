@@ -29,12 +29,15 @@ GIF_EVERY = 2
 GIF_FRAMES = 60
 
 
-def morph_options(func):
-    """Add ``vfit morph``'s body options to a command (copies of its click parameters)."""
+def morph_options(func=None, *, garment=True):
+    """Add ``vfit morph``'s body options to a command (copies of its click parameters); ``garment``: the
+    command has a garment, whose gender is the default."""
+    if func is None:
+        return lambda f: morph_options(f, garment=garment)
     params = {p.name: p for p in _morph.morph.params}
     for name in reversed(MORPH_OPTIONS):
         opt = copy.copy(params[name])
-        if name == "gender":
+        if name == "gender" and garment:
             # here the default is the garment's own gender, not always female
             opt.show_default = False
             opt.help = "Body gender: female, male or a blend 0..1 [default: the garment's, from its .mhclo tags, else female]."

@@ -9,7 +9,7 @@ import sys
 
 import click
 
-from . import batch, drape, measure, morph, segment, size, transfer
+from . import batch, drape, measure, morph, pose, segment, size, transfer
 from ._common import Terminated, interruption
 
 
@@ -64,6 +64,7 @@ cli.add_command(segment.segment)
 cli.add_command(transfer.transfer)
 cli.add_command(size.size)
 cli.add_command(batch.batch)
+cli.add_command(pose.pose)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -19,7 +19,7 @@ def run(*args):
 
 @pytest.mark.parametrize("args", [["--help"], ["morph", "--help"], ["measure", "--help"], ["drape", "--help"],
                                   ["segment", "--help"], ["transfer", "--help"], ["size", "--help"],
-                                  ["batch", "--help"]])
+                                  ["batch", "--help"], ["pose", "--help"]])
 def test_help(args):
     r = run(*args)
     assert r.exit_code == 0 and "Usage" in r.output
@@ -28,7 +28,7 @@ def test_help(args):
 def test_help_does_not_import_numba():
     code = ("import sys\nfrom click.testing import CliRunner\nfrom vfit_cli.main import cli\n"
             "for a in (['--help'], ['morph', '--help'], ['measure', '--help'], ['segment', '--help'], ['transfer', '--help'],\n"
-            "          ['drape', '--help'], ['size', '--help'], ['batch', '--help']):\n"
+            "          ['drape', '--help'], ['size', '--help'], ['batch', '--help'], ['pose', '--help']):\n"
             "    assert CliRunner().invoke(cli, a).exit_code == 0\n"
             "print('numba' in sys.modules, 'scipy' in sys.modules, 'distributed' in sys.modules, 'pyarrow' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

@@ -1,0 +1,148 @@
+"""Posing a body with the default rig: the joints of that body, a BVH pose's rotations, skinning matrices.
+
+::
+
+    motion = read_bvh("sit01.bvh")
+    mats = pose_matrices(model, body_verts, motion, frame=0)      # (163, 3, 4), model.bone_names order
+    posed = Skinning(model).deform(body_verts, mats, method="dqs")
+
+**Joints from the body.** A rig bone's head and tail are placed on *this* body as MakeHuman places them
+(:func:`vfit_engine.body.segment.bone_positions`: the centre of a joint's helper cube, or a vertex), so a pose
+fits any body vfit builds: a longer leg rotates about its own knee.
+
+**Rotations from the BVH.** A BVH joint's frame is aligned with the world at rest (the file's OFFSETs are
+world vectors), so its channel rotation R_j is a rotation in world axes, composed down the hierarchy:
+``G_b = G_parent(b) @ R_b``. MakeHuman's poses are written Z up in decimetres; vfit's frame is Y up in
+metres (+Z front): a file vector (x, y, z) is (x, z, -y) here (:data:`Z_UP`; its fit of the poses' rest
+skeleton to vfit's default body: scale 0.104, median joint residual 16 mm), so a rotation becomes
+``C R C^T``. A file that is Y up already (CMU, most mocap) is taken as it is (:func:`file_axes` tells them
+apart by the rest skeleton's tallest extent). Only rotations are taken from the file; its bone lengths are
+the body's.
+
+**Skinning matrices.** Bone b's head moves with its parent: ``p_b = p_parent + G_parent (h_b - h_parent)``
+(the root stays where it is: the body is posed in place, as the seed system did; ``root_translation``
+moves it), and the bone's matrix maps a rest point x to ``G_b (x - h_b) + p_b``.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+#: File axes -> vfit axes for a Z-up file (MakeHuman's poses): (x, y, z) -> (x, z, -y).
+Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+def file_axes(motion):
+    """The rotation taking the file's axes to vfit's: :data:`Z_UP` when the rest skeleton is tallest along
+    Z, else the identity (a Y-up file)."""
+    rest = motion.rest_positions()
+    extent = rest.max(axis=0) - rest.min(axis=0)
+    return Z_UP.copy() if int(np.argmax(extent)) == 2 else np.eye(3)
+
+
+def rig_order(model):
+    """Bone indices (``model.bone_names`` order) sorted so that every parent comes before its children, and
+    each bone's parent index (-1 for the root)."""
+    names = list(model.bone_names)
+    index = {n: i for i, n in enumerate(names)}
+    parent = np.array([index.get(model.rig[n].get("parent"), -1) if model.rig[n].get("parent") else -1
+                       for n in names], dtype=np.int64)
+    order, seen = [], set()
+
+    def visit(i):
+        if i in seen:
+            return
+        if parent[i] >= 0:
+            visit(parent[i])
+        seen.add(i)
+        order.append(i)
+
+    for i in range(len(names)):
+        visit(i)
+    return np.array(order, dtype=np.int64), parent
+
+
+def bone_rotations(model, motion, frame=0, axes=None):
+    """(b, 3, 3) each rig bone's local rotation in vfit's axes from ``motion`` at ``frame`` (identity for a
+    bone the file does not name), ``model.bone_names`` order."""
+    axes = file_axes(motion) if axes is None else np.asarray(axes, dtype=np.float64)
+    local = motion.local_rotations(frame)
+    out = np.tile(np.eye(3), (len(model.bone_names), 1, 1))
+    joint = {n: j for j, n in enumerate(motion.names)}
+    for b, name in enumerate(model.bone_names):
+        j = joint.get(name)
+        if j is not None:
+            out[b] = axes @ local[j] @ axes.T
+    return out
+
+
+def pose_matrices(model, verts, rotations, root_translation=None):
+    """Skinning matrices of the body ``verts`` posed by local bone ``rotations`` (module docstring).
+
+    Parameters
+    ----------
+    model : BodyModel
+    verts : (19158, 3) float64, m
+        The body with its helper vertices (a body vfit builds; the joints are placed from them).
+    rotations : (b, 3, 3) float64
+        Each bone's rotation relative to its parent, in vfit's axes (:func:`bone_rotations`).
+    root_translation : (3,) float64, m, or None
+
+    Returns
+    -------
+    (b, 3, 4) float64
+        ``[G_b | p_b - G_b h_b]`` per bone, ``model.bone_names`` order: a rest point x of bone b goes to
+        ``M_b[:, :3] @ x + M_b[:, 3]``.
+    heads : (b, 3) float64, m
+        The posed bone heads (joint positions).
+    """
+    from vfit_engine.body.segment import bone_positions
+
+    pos = bone_positions(model, verts)
+    heads = np.array([pos[n][0] for n in model.bone_names])
+    order, parent = rig_order(model)
+    glob = np.zeros((len(heads), 3, 3))
+    posed = np.zeros_like(heads)
+    for b in order:
+        p = parent[b]
+        if p < 0:
+            glob[b] = rotations[b]
+            posed[b] = heads[b] + (0.0 if root_translation is None else np.asarray(root_translation, float))
+        else:
+            glob[b] = glob[p] @ rotations[b]
+            posed[b] = posed[p] + glob[p] @ (heads[b] - heads[p])
+    mats = np.concatenate([glob, (posed - np.einsum("bij,bj->bi", glob, heads))[:, :, None]], axis=2)
+    return mats, posed
+
+
+@dataclasses.dataclass
+class PosedBody:
+    """A posed body: ``verts`` (n, 3) m in the input's vertex order, ``heads`` (b, 3) m the posed joints
+    (``model.bone_names`` order), ``named`` how many of the rig's bones the file posed (the others keep
+    their parent's rotation)."""
+
+    verts: np.ndarray
+    heads: np.ndarray
+    named: int
+
+
+def skinning_for(model, n_verts):
+    """The rig's :class:`~vfit_engine.body.skinning.Skinning` of the first ``n_verts`` vertices (the whole
+    model with its helpers, or the 13,380 vertices of a body file)."""
+    from vfit_engine.body.skinning import Skinning
+
+    bone, vertex, weight = model.skin
+    keep = vertex < n_verts
+    return Skinning(bone[keep], vertex[keep], weight[keep], n_verts, len(model.bone_names))
+
+
+def pose_body(model, verts, motion, frame=0, method="dqs", skinning=None):
+    """``verts`` (a body of ``model``'s topology, with or without its helper vertices) in the pose of
+    ``motion`` at ``frame``, skinned by ``method`` ("dqs" or "lbs"); returns a :class:`PosedBody`."""
+    verts = np.ascontiguousarray(verts, dtype=np.float64)
+    rotations = bone_rotations(model, motion, frame)
+    mats, heads = pose_matrices(model, verts, rotations)
+    skinning = skinning or skinning_for(model, len(verts))
+    named = len(set(model.bone_names) & set(motion.names))
+    return PosedBody(skinning.deform(verts, mats, method=method), heads, named)
