@@ -14,8 +14,14 @@ SKINNING = ("dqs", "lbs")
                    "of --gender, or one built from the measurement options.")
 @morph_options(garment=False)
 @click.option("--pose", "pose_path", required=True, type=click.Path(dir_okay=False),
-              help="A BVH file with the default rig's joint names (MakeHuman's poses; Z-up or Y-up files).")
-@click.option("--frame", type=click.IntRange(0, None), default=0, show_default=True, help="Frame of the BVH to take.")
+              help="A BVH file with the default rig's joint names (MakeHuman's poses; Z-up or Y-up files), or "
+                   "'walk': one stride of a walk from normative gait kinematics (Winter 2009; Perry 2010).")
+@click.option("--frame", type=click.IntRange(0, None), default=0, show_default=True,
+              help="Frame of the motion to take (a walk: 0 = the right heel's contact, 30 frames per second).")
+@click.option("--speed", type=click.FloatRange(0.3, 2.5), default=1.3, show_default=True,
+              help="Walking speed, m/s (--pose walk): sets the stride's time through cadence.")
+@click.option("--gif", "gif_path", default=None, type=click.Path(dir_okay=False),
+              help="Also write every frame of the motion as an animated GIF (the body from the side).")
 @click.option("--skinning", type=click.Choice(SKINNING), default="dqs", show_default=True,
               help="dqs = dual-quaternion skinning (keeps volume at twisted joints), lbs = linear blend skinning.")
 @click.option("-o", "--output", default="posed.obj", show_default=True, type=click.Path(dir_okay=False),
@@ -25,8 +31,8 @@ SKINNING = ("dqs", "lbs")
 @click.option("-q", "--quiet", is_flag=True, help="Print only where the body was written.")
 @click.pass_context
 @handle_errors
-def pose(ctx, body_path, pose_path, frame, skinning, output, json_path, quiet, gender, height, weight, definition,
-         **girths):
+def pose(ctx, body_path, pose_path, frame, speed, gif_path, skinning, output, json_path, quiet, gender, height, weight,
+         definition, **girths):
     """Pose a body with a BVH pose of the default rig and write it.
 
     The joints are placed on this body (as MakeHuman places them), so a pose
@@ -39,6 +45,7 @@ def pose(ctx, body_path, pose_path, frame, skinning, output, json_path, quiet, g
       vfit pose --pose sit01.bvh -o sitting.obj
       vfit pose --gender male --height 185 --pose run01.bvh --skinning lbs -o run.obj
       vfit pose --body customer.obj --pose standing02.bvh -o standing.obj
+      vfit pose --pose walk --speed 1.4 --frame 10 -o step.obj --gif walk.gif
     """
     import os
     import time
@@ -50,30 +57,38 @@ def pose(ctx, body_path, pose_path, frame, skinning, output, json_path, quiet, g
     check_output_path(output, (".obj", ".ply"))
     if json_path:
         check_output_path(json_path, (".json",))
-    if not os.path.isfile(pose_path):
-        raise InputError(f"pose file not found: {pose_path}")
+    if gif_path:
+        check_output_path(gif_path, (".gif",))
+    walk = pose_path == "walk"
+    if not walk and not os.path.isfile(pose_path):
+        raise InputError(f"pose file not found: {pose_path} (or use --pose walk)")
 
     from vfit_engine.body.bodyio import write_body
+    from vfit_engine.body.gait import walk_motion
     from vfit_engine.body.model import BodyModel
-    from vfit_engine.body.pose import pose_body
+    from vfit_engine.body.pose import pose_body, skinning_for
     from vfit_engine.body.resolve import resolve_body
     from vfit_engine.io.bvh import read_bvh
 
-    motion = read_bvh(pose_path)
-    if frame >= len(motion.frames):
-        raise InputError(f"{pose_path}: frame {frame} asked for, the file has {len(motion.frames)} "
-                         f"(use --frame 0..{len(motion.frames) - 1})")
     model = BodyModel.load()
+    motion = walk_motion(model, speed=speed) if walk else read_bvh(pose_path)
+    if frame >= len(motion.frames):
+        raise InputError(f"{pose_path}: frame {frame} asked for, the {'walk' if walk else 'file'} has "
+                         f"{len(motion.frames)} (use --frame 0..{len(motion.frames) - 1})")
     body = resolve_body(model, body_path, targets, weight, gender, definition)
-    posed = pose_body(model, body.verts, motion, frame, method=skinning)
+    skin = skinning_for(model, len(body.verts))
+    posed = pose_body(model, body.verts, motion, frame, method=skinning, skinning=skin)
     write_body(output, model, posed.verts,
                header=[f"vfit pose: {os.path.basename(pose_path)} frame {frame}, {skinning}; metres, Y up"])
+    if gif_path:
+        _gif(gif_path, model, body.verts, motion, skinning, skin)
     elapsed = time.perf_counter() - t0
     if not quiet:
         click.echo(f"vfit pose: {os.path.basename(pose_path)} frame {frame} on the {body.description.get('source')} "
                    f"body: {posed.named} of the rig's {len(model.bone_names)} bones posed from the file, "
                    f"{skinning} skinning")
-    click.echo(f"wrote {output} (13,380 body vertices, metres, Y up) in {elapsed:.2f} s")
+    click.echo(f"wrote {output} (13,380 body vertices, metres, Y up){' and ' + gif_path if gif_path else ''} in "
+               f"{elapsed:.2f} s")
     if json_path:
         write_json(json_path, dict(command="pose", pose=os.path.abspath(pose_path), frame=frame, skinning=skinning,
                                    body=body.description, units=dict(mesh="m", joints="m"),
@@ -82,3 +97,16 @@ def pose(ctx, body_path, pose_path, frame, skinning, output, json_path, quiet, g
                                    output=output, time_s=round(elapsed, 3)))
         if not quiet:
             click.echo(f"wrote {json_path}")
+
+
+def _gif(path, model, verts, motion, method, skin):
+    """Every frame of ``motion`` (at most the GIF's limit, evenly spread) on the body, from the side."""
+    import numpy as np
+
+    from vfit_engine.animation import MAX_FRAMES, write_gif
+    from vfit_engine.body.model import N_BODY
+    from vfit_engine.body.pose import pose_body
+
+    pick = np.unique(np.linspace(0, len(motion.frames) - 1, min(len(motion.frames), MAX_FRAMES)).round().astype(int))
+    frames = [pose_body(model, verts, motion, int(k), method=method, skinning=skin).verts[:N_BODY] for k in pick]
+    write_gif(path, None, None, frames, model.body_tris, fps=min(1.0 / motion.frame_time, 50.0), view="side")
