@@ -10,11 +10,11 @@ SOME_FAILED = 5
 class TaskProgress:
     """A bar over the tasks on a terminal (rewritten in place), else a line per task."""
 
-    def __init__(self, quiet, total, skipped):
+    def __init__(self, quiet):
         import sys
         import time
 
-        self.quiet, self.total, self.skipped = quiet, total, skipped
+        self.quiet = quiet
         self.stream = sys.stderr
         self.tty = self.stream.isatty()
         self.t0 = time.perf_counter()
@@ -129,7 +129,7 @@ def _batch(job_file, outdir, workers, scheduler, retries, keep_meshes, retry_fai
         click.echo(f"vfit batch: {len(job.tasks)} tasks ({job.garments} garments x {job.bodies} bodies"
                    f"{', with sizes' if any(t.size for t in job.tasks) else ''}); {len(job.tasks) - todo} done "
                    f"already" + (f", running {todo} on {where}" if todo else ", nothing to run"), err=True)
-    progress = TaskProgress(quiet, len(job.tasks), len(job.tasks) - todo)
+    progress = TaskProgress(quiet)
     s = run_batch(job, outdir, workers=workers, scheduler=scheduler, retries=retries, keep_meshes=keep_meshes,
                   retry_failed=retry_failed, on_task=progress)
     summary = dict(job=os.path.abspath(job_file), tasks=s.tasks, counts=s.counts, ran=s.ran, skipped=s.skipped,

@@ -90,6 +90,14 @@ def test_a_bad_garment_fails_alone(client, job_dir, tmp_path):
     assert rows["bad"]["status"] == "failed" and "bad.obj" in rows["bad"]["error"], rows["bad"]["error"]
     assert rows["skirt"]["status"] == "ok" and s.counts["failed"] == 1
     assert s.failures[0][0].startswith("bad on ")
+    # --retry-failed runs the failed task again (and only it); its new row replaces the old one
+    again = run_batch(load_job(job_dir / "job.yaml"), tmp_path / "out", client=client, retry_failed=True)
+    from vfit_engine.batch.results import ResultStore
+
+    table = ResultStore(tmp_path / "out").read().to_pylist()  # one row per task: the newest
+    rows2 = {r["garment_name"]: r for r in table}
+    assert again.ran == 1 and len(table) == 2 and rows2["bad"]["finished_at"] > rows["bad"]["finished_at"]
+    assert rows2["skirt"]["finished_at"] == rows["skirt"]["finished_at"]
 
 
 def test_customers_csv_through_the_cli_on_a_scheduler_by_address(cluster, job_dir, tmp_path):
