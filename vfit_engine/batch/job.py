@@ -199,6 +199,8 @@ def _known(mapping, keys, where):
 def _garments(entries, base, path):
     from vfit_engine.fit.sizes import parse_sizes
 
+    if isinstance(entries, (str, dict)):
+        entries = [entries]
     if not isinstance(entries, list) or not entries:
         raise InputError(f"{path}: 'garments' must be a non-empty list of garment files")
     out = []
@@ -210,7 +212,8 @@ def _garments(entries, base, path):
         _known(e, GARMENT_KEYS, where)
         file = (base / e["path"]).resolve()
         if not file.is_file():
-            raise InputError(f"{where}: garment file not found: {file}")
+            what = "is a folder, not a garment file" if file.is_dir() else "garment file not found"
+            raise InputError(f"{where}: {what}: {file}")
         units = str(e.get("units", "auto"))
         if units not in UNITS:
             raise InputError(f"{where}: unknown units {units!r}; use {', '.join(UNITS)}")
