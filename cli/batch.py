@@ -114,7 +114,6 @@ def _batch(job_file, outdir, workers, scheduler, retries, keep_meshes, retry_fai
     import os
 
     from vfit_engine.batch.job import load_job
-    from vfit_engine.batch.results import ResultStore
     from vfit_engine.batch.runner import run_batch
 
     from ._common import write_json
@@ -122,16 +121,16 @@ def _batch(job_file, outdir, workers, scheduler, retries, keep_meshes, retry_fai
     job = load_job(job_file)
     for w in job.warnings:
         click.echo(f"Warning: {job_file}: {w}", err=True)
-    done = ResultStore(outdir).statuses()
-    todo = sum(1 for t in job.tasks if t.id not in done or (retry_failed and done[t.id] == "failed"))
-    if not quiet:
-        where = f"the Dask cluster at {scheduler}" if scheduler else "a local Dask cluster"
-        click.echo(f"vfit batch: {len(job.tasks)} tasks ({job.garments} garments x {job.bodies} bodies"
-                   f"{', with sizes' if any(t.size for t in job.tasks) else ''}); {len(job.tasks) - todo} done "
-                   f"already" + (f", running {todo} on {where}" if todo else ", nothing to run"), err=True)
-    progress = TaskProgress(quiet)
+
+    def start(todo):
+        if not quiet:
+            where = f"the Dask cluster at {scheduler}" if scheduler else "a local Dask cluster"
+            click.echo(f"vfit batch: {len(job.tasks)} tasks ({job.garments} garments x {job.bodies} bodies"
+                       f"{', with sizes' if any(t.size for t in job.tasks) else ''}); {len(job.tasks) - todo} done "
+                       f"already" + (f", running {todo} on {where}" if todo else ", nothing to run"), err=True)
+
     s = run_batch(job, outdir, workers=workers, scheduler=scheduler, retries=retries, keep_meshes=keep_meshes,
-                  retry_failed=retry_failed, on_task=progress)
+                  retry_failed=retry_failed, on_start=start, on_task=TaskProgress(quiet))
     summary = dict(job=os.path.abspath(job_file), tasks=s.tasks, counts=s.counts, ran=s.ran, skipped=s.skipped,
                    wall_s=round(s.wall_s, 3), workers=s.workers, drapes_per_hour=round(s.drapes_per_hour, 1),
                    failures=[dict(task=t, error=e) for t, e in s.failures],

@@ -105,8 +105,10 @@ def _gif(path, model, verts, motion, method, skin):
 
     from vfit_engine.animation import MAX_FRAMES, write_gif
     from vfit_engine.body.model import N_BODY
-    from vfit_engine.body.pose import pose_body
+    from vfit_engine.body.pose import body_joints, pose_body
 
     pick = np.unique(np.linspace(0, len(motion.frames) - 1, min(len(motion.frames), MAX_FRAMES)).round().astype(int))
-    frames = [pose_body(model, verts, motion, int(k), method=method, skinning=skin).verts[:N_BODY] for k in pick]
+    joints = body_joints(model, verts)  # the body's joints, the same in every frame
+    frames = [pose_body(model, verts, motion, int(k), method=method, skinning=skin, joints=joints).verts[:N_BODY]
+              for k in pick]
     write_gif(path, None, None, frames, model.body_tris, fps=min(1.0 / motion.frame_time, 50.0), view="side")

@@ -6,33 +6,14 @@ import pytest
 from click.testing import CliRunner
 
 from vfit_cli.main import cli
-from vfit_engine.body.pose import Z_UP, bone_rotations, file_axes, pose_body, pose_matrices, rig_order
-from vfit_engine.io.bvh import Motion, read_bvh
+from vfit_engine.body.pose import Z_UP, bone_rotations, file_axes, pose_body, pose_matrices, rig_motion
+from vfit_engine.io.bvh import read_bvh
 
 POSES = Path(__file__).resolve().parents[2] / "shared" / "assets" / "poses"
 needs_poses = pytest.mark.skipif(not POSES.is_dir(), reason="../shared/assets/poses (MakeHuman poses) absent")
 #: Joints well inside the body in any pose (not the fingers, eyes or toes, whose joints lie near the skin).
 CORE_JOINTS = ("spine05", "spine03", "spine01", "neck01", "head", "upperarm01.L", "upperarm01.R", "lowerarm01.L",
                "lowerarm01.R", "upperleg01.L", "upperleg01.R", "lowerleg01.L", "lowerleg01.R")
-
-
-def rig_motion(model, rotations_deg=None):
-    """A one-frame Y-up BVH of the rig's bones (rest offsets from the default body), all rotations zero but
-    ``rotations_deg`` (bone -> (x, y, z) degrees, channels Zrotation Xrotation Yrotation)."""
-    from vfit_engine.body.segment import bone_positions
-
-    heads = bone_positions(model, model.default_verts("female"))
-    order, parent = rig_order(model)
-    names = [model.bone_names[b] for b in order]
-    index = {b: i for i, b in enumerate(order)}
-    parents = np.array([index[parent[b]] if parent[b] >= 0 else -1 for b in order])
-    offsets = np.array([heads[n][0] - (heads[names[p]][0] if p >= 0 else 0.0) for n, p in zip(names, parents)])
-    frame = np.zeros((1, 3 * len(names)))
-    for name, (x, y, z) in (rotations_deg or {}).items():
-        i = names.index(name)
-        frame[0, 3 * i:3 * i + 3] = (z, x, y)
-    return Motion(names=names, parents=parents, offsets=offsets,
-                  channels=[("Zrotation", "Xrotation", "Yrotation")] * len(names), frames=frame)
 
 
 def test_rest_pose_skins_to_the_rest_body(body_model):

@@ -120,7 +120,7 @@ def connect(workers=None, scheduler=None, retries=2):
 
 
 def run_batch(job, outdir, workers=None, scheduler=None, retries=2, keep_meshes=False, retry_failed=False,
-              on_task=None, client=None):
+              on_start=None, on_task=None, client=None):
     """Run the tasks of ``job`` (:class:`vfit_engine.batch.job.Job`) that have no row in ``outdir`` yet.
 
     Parameters
@@ -137,6 +137,8 @@ def run_batch(job, outdir, workers=None, scheduler=None, retries=2, keep_meshes=
     keep_meshes : bool
     retry_failed : bool
         Also run again the tasks whose row is ``failed``.
+    on_start : callable or None
+        ``on_start(todo)`` with the number of tasks to run, before a cluster is reached.
     on_task : callable or None
         ``on_task(done, todo, row)`` after each task's row is written (``row``: the flat row).
     client : distributed.Client or None
@@ -150,6 +152,8 @@ def run_batch(job, outdir, workers=None, scheduler=None, retries=2, keep_meshes=
     store = ResultStore(outdir)
     before = store.statuses()
     todo = [t for t in job.tasks if t.id not in before or (retry_failed and before[t.id] == "failed")]
+    if on_start is not None:
+        on_start(len(todo))
     n_workers = 0
     if todo:
         todo.sort(key=lambda t: (t.body_key(), t.garment, t.size or ""))

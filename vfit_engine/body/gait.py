@@ -109,9 +109,8 @@ def walk_motion(model, speed=1.3, fps=30.0, cycles=1):
     pose_body` places the joints on the body it poses and takes only the rotations), with channels
     ``Zrotation Xrotation Yrotation``; the bones the gait does not drive stay at rest.
     """
-    from vfit_engine.body.pose import rig_order
+    from vfit_engine.body.pose import rig_motion
     from vfit_engine.body.segment import bone_positions
-    from vfit_engine.io.bvh import Motion
 
     if not (np.isfinite(speed) and 0.3 <= speed <= 2.5):
         from vfit_engine.errors import InputError
@@ -120,17 +119,5 @@ def walk_motion(model, speed=1.3, fps=30.0, cycles=1):
     period = stride_time(speed)
     n = max(int(round(period * fps)), 2)
     phase = np.arange(n * int(cycles)) / n
-    heads = bone_positions(model, model.default_verts("female"))
-    angles = walk_angles(phase, rest_angles(heads))
-    order, parent = rig_order(model)
-    names = [model.bone_names[b] for b in order]
-    index = {b: i for i, b in enumerate(order)}
-    parents = np.array([index[parent[b]] if parent[b] >= 0 else -1 for b in order])
-    offsets = np.array([heads[nm][0] - (heads[names[p]][0] if p >= 0 else 0.0) for nm, p in zip(names, parents)])
-    frames = np.zeros((phase.size, 3 * len(names)))
-    for name, a in angles.items():
-        i = names.index(name)
-        frames[:, 3 * i:3 * i + 3] = a[:, [2, 0, 1]]  # channels Z, X, Y
-    return Motion(names=names, parents=parents, offsets=offsets,
-                  channels=[("Zrotation", "Xrotation", "Yrotation")] * len(names), frames=frames,
-                  frame_time=1.0 / fps)
+    angles = walk_angles(phase, rest_angles(bone_positions(model, model.default_verts("female"))))
+    return rig_motion(model, angles, n_frames=phase.size, fps=fps)

@@ -3,8 +3,9 @@
 ::
 
     motion = read_bvh("sit01.bvh")
-    mats = pose_matrices(model, body_verts, motion, frame=0)      # (163, 3, 4), model.bone_names order
-    posed = Skinning(model).deform(body_verts, mats, method="dqs")
+    posed = pose_body(model, body_verts, motion, frame=0)          # .verts, .heads (the posed joints)
+    # its steps: bone_rotations(model, motion, 0) -> pose_matrices(model, body_verts, rotations) ->
+    # skinning_for(model, n).deform(body_verts, mats, "dqs")
 
 **Joints from the body.** A rig bone's head and tail are placed on *this* body as MakeHuman places them
 (:func:`vfit_engine.body.segment.bone_positions`: the centre of a joint's helper cube, or a vertex), so a pose
@@ -77,17 +78,28 @@ def bone_rotations(model, motion, frame=0, axes=None):
     return out
 
 
-def pose_matrices(model, verts, rotations, root_translation=None):
+def body_joints(model, verts):
+    """(b, 3) m: the rig's bone heads (joints) placed on the body ``verts``, ``model.bone_names`` order
+    (:func:`vfit_engine.body.segment.bone_positions`); the same for every pose of that body."""
+    from vfit_engine.body.segment import bone_positions
+
+    pos = bone_positions(model, verts)
+    return np.array([pos[n][0] for n in model.bone_names])
+
+
+def pose_matrices(model, verts, rotations, root_translation=None, joints=None):
     """Skinning matrices of the body ``verts`` posed by local bone ``rotations`` (module docstring).
 
     Parameters
     ----------
     model : BodyModel
-    verts : (19158, 3) float64, m
-        The body with its helper vertices (a body vfit builds; the joints are placed from them).
+    verts : (19158, 3) or (13380, 3) float64, m
+        The body (with its helper vertices the joints come straight from them).
     rotations : (b, 3, 3) float64
         Each bone's rotation relative to its parent, in vfit's axes (:func:`bone_rotations`).
     root_translation : (3,) float64, m, or None
+    joints : (b, 3) float64, m, or None
+        :func:`body_joints` of ``verts``, when already computed (posing one body in many frames).
 
     Returns
     -------
@@ -97,10 +109,7 @@ def pose_matrices(model, verts, rotations, root_translation=None):
     heads : (b, 3) float64, m
         The posed bone heads (joint positions).
     """
-    from vfit_engine.body.segment import bone_positions
-
-    pos = bone_positions(model, verts)
-    heads = np.array([pos[n][0] for n in model.bone_names])
+    heads = body_joints(model, verts) if joints is None else joints
     order, parent = rig_order(model)
     glob = np.zeros((len(heads), 3, 3))
     posed = np.zeros_like(heads)
@@ -137,12 +146,37 @@ def skinning_for(model, n_verts):
     return Skinning(bone[keep], vertex[keep], weight[keep], n_verts, len(model.bone_names))
 
 
-def pose_body(model, verts, motion, frame=0, method="dqs", skinning=None):
+def pose_body(model, verts, motion, frame=0, method="dqs", skinning=None, joints=None):
     """``verts`` (a body of ``model``'s topology, with or without its helper vertices) in the pose of
-    ``motion`` at ``frame``, skinned by ``method`` ("dqs" or "lbs"); returns a :class:`PosedBody`."""
+    ``motion`` at ``frame``, skinned by ``method`` ("dqs" or "lbs"); returns a :class:`PosedBody`.
+    ``skinning`` (:func:`skinning_for`) and ``joints`` (:func:`body_joints`) are the body's, when
+    already built (posing one body in many frames)."""
     verts = np.ascontiguousarray(verts, dtype=np.float64)
     rotations = bone_rotations(model, motion, frame)
-    mats, heads = pose_matrices(model, verts, rotations)
+    mats, heads = pose_matrices(model, verts, rotations, joints=joints)
     skinning = skinning or skinning_for(model, len(verts))
     named = len(set(model.bone_names) & set(motion.names))
     return PosedBody(skinning.deform(verts, mats, method=method), heads, named)
+
+
+def rig_motion(model, angles=None, n_frames=1, fps=30.0):
+    """A Y-up BVH :class:`~vfit_engine.io.bvh.Motion` of the rig itself: every bone a joint, parents first,
+    offsets from the default female body (m), channels ``Zrotation Xrotation Yrotation``; all angles zero
+    but ``angles`` (bone name -> (n_frames, 3) or (3,) degrees about X, Y, Z). :func:`pose_body` places the
+    joints on the body it poses, so only the rotations of such a motion matter."""
+    from vfit_engine.io.bvh import Motion
+
+    heads = body_joints(model, model.default_verts("female"))
+    order, parent = rig_order(model)
+    index = {b: i for i, b in enumerate(order)}
+    names = [model.bone_names[b] for b in order]
+    parents = np.array([index[parent[b]] if parent[b] >= 0 else -1 for b in order])
+    offsets = np.array([heads[b] - (heads[parent[b]] if parent[b] >= 0 else 0.0) for b in order])
+    frames = np.zeros((int(n_frames), 3 * len(names)))
+    for name, a in (angles or {}).items():
+        i = names.index(name)
+        xyz = np.broadcast_to(np.asarray(a, dtype=np.float64), (int(n_frames), 3))
+        frames[:, 3 * i:3 * i + 3] = xyz[:, [2, 0, 1]]  # the channels' order: Z, X, Y
+    return Motion(names=names, parents=parents, offsets=offsets,
+                  channels=[("Zrotation", "Xrotation", "Yrotation")] * len(names), frames=frames,
+                  frame_time=1.0 / fps)
