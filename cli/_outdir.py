@@ -1,8 +1,9 @@
 """A command's output directory: checked before any work, held by one run at a time, cleared of an earlier run.
 
 ``with OutdirLock(outdir):`` creates OUTDIR if it is missing, takes its lock file (``.vfit.lock``, holding the
-run's pid) and on leaving releases it and removes OUTDIR again if this run created it and left nothing in it
-(an early error leaves no empty directory behind). A second run into the same OUTDIR fails at once with
+run's pid) and on leaving removes the temporary files an interrupted atomic write left in it, releases it and
+removes OUTDIR again if this run created it and left nothing in it (an early error leaves no empty directory
+behind). A second run into the same OUTDIR fails at once with
 :class:`InputError` naming the first one's pid; a lock whose process is gone (killed) is taken over.
 """
 import glob
@@ -94,6 +95,9 @@ class OutdirLock:
 
     def __exit__(self, *exc):
         if self.held and self._owner() == os.getpid():
+            from vfit_engine.io.atomic import remove_orphans
+
+            remove_orphans(self.outdir)  # an interrupted write's temporary file (see remove_orphans)
             try:
                 os.remove(self.lock)
             except OSError:

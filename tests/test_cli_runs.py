@@ -81,6 +81,22 @@ def test_a_stale_lock_is_taken_over_and_early_errors_leave_no_outdir(tmp_path):
     assert r.exit_code == 2 and not fresh.exists() and not os.path.exists(str(fresh) + ".vfit.lock")
 
 
+def test_leaving_an_outdir_removes_an_interrupted_writes_temporary_file(tmp_path):
+    """A signal between an atomic write's temporary file and the block that owns it skips its clean-up (seen once
+    in CI as .frame_0006.obj.*.tmp after Ctrl-C); the run that holds OUTDIR removes such files when it lets go."""
+    import tempfile
+
+    from vfit_cli._outdir import OutdirLock
+
+    out = tmp_path / "o"
+    with OutdirLock(str(out)):
+        orphan = tempfile.mkstemp(prefix=".frame_0006.obj.", suffix=".tmp", dir=out)
+        os.close(orphan[0])
+        (out / "frame_0006.obj").write_text("v 0 0 0\n")
+        (out / "notes.tmp").write_text("not ours")  # not an atomic write's name: kept
+    assert sorted(p.name for p in out.iterdir()) == ["frame_0006.obj", "notes.tmp"]
+
+
 def test_an_unwritable_json_path_stops_every_command_before_it_writes(tmp_path, body_model):
     """--json into a missing directory: exit 2 before anything is written (drape, morph, segment)."""
     from vfit_engine.body.bodyio import write_body

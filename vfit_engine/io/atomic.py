@@ -8,6 +8,9 @@ from pathlib import Path
 
 from vfit_engine.errors import InputError
 
+#: The temporary files :func:`atomic_write` makes beside its target (".NAME.RANDOM.tmp").
+TEMP_GLOB = ".*.tmp"
+
 
 @contextlib.contextmanager
 def atomic_write(path, mode="w", encoding="utf-8", newline="\n"):
@@ -38,7 +41,7 @@ def atomic_write(path, mode="w", encoding="utf-8", newline="\n"):
     path = Path(path)
     directory = path.parent if str(path.parent) else Path(".")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)  # TEMP_GLOB
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
@@ -59,3 +62,13 @@ def atomic_write(path, mode="w", encoding="utf-8", newline="\n"):
         if isinstance(exc, OSError) and not isinstance(exc, InputError):
             raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
         raise
+
+
+def remove_orphans(directory):
+    """Remove the temporary files of :func:`atomic_write` left in ``directory``: a signal that lands between
+    the temporary file's creation and the ``with`` block that owns it (inside ``mkstemp``, or in
+    contextlib's ``__enter__``) skips the clean-up. Only for a directory one process holds (a command's
+    OUTDIR under its lock), where every such file is an orphan once that process is done with it."""
+    for tmp in Path(directory).glob(TEMP_GLOB):
+        with contextlib.suppress(OSError):
+            tmp.unlink()
