@@ -66,7 +66,7 @@ def body_targets(body_path, girths, height, weight):
                    "average body of the garment's gender, or one built from the measurement options.")
 @morph_options
 @click.option("--material", default="cotton", show_default=True,
-              help="cotton, denim, silk, jersey, or a material .json file.")
+              help="silk, cotton, wool, denim, jersey, or a material .json file (keys with units: see README).")
 @click.option("--rest", type=click.Choice(["garment", "graded"]), default="garment", show_default=True,
               help="The cloth's own size: garment = the garment as given (a size M shirt on a large body is "
                    "tight, and the report says where); graded = made to measure: the garment graded to this "

@@ -21,7 +21,7 @@ NOT_JUDGED = 3
 @click.option("--sizes", "sizes_text", default=",".join(SIZE_NAMES), show_default=True,
               help="Comma-separated EN 13402 letter sizes to try.")
 @click.option("--material", default="cotton", show_default=True,
-              help="cotton, denim, silk, jersey, or a material .json file.")
+              help="silk, cotton, wool, denim, jersey, or a material .json file (keys with units: see README).")
 @click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--workers", type=click.IntRange(1, 256), default=None,

@@ -24,6 +24,27 @@ def spring_forces(x, xp, dt, idx, rest, k, kd):
     return f
 
 
+def hinge_forces(x, xp, dt, idx, k, kd, rest, eps=1e-7):
+    """Bending forces of dihedral hinges, N: f = -(k (theta - theta0) + kd dtheta/dt) grad theta, the gradient
+    by central differences of the angle (:func:`vfit_engine.sim.bending.hinge_angles`)."""
+    from vfit_engine.sim.bending import hinge_angles
+
+    v = (x - xp) / dt
+    f = np.zeros_like(x)
+    for h in range(idx.shape[0]):
+        one = idx[h:h + 1]
+        grad = np.zeros((4, 3))
+        for m in range(4):
+            for c in range(3):
+                a, b = x.copy(), x.copy()
+                a[one[0, m], c] += eps
+                b[one[0, m], c] -= eps
+                grad[m, c] = (hinge_angles(one, a)[0] - hinge_angles(one, b)[0]) / (2 * eps)
+        d = (hinge_angles(one, x)[0] - rest[h] + np.pi) % (2 * np.pi) - np.pi
+        f[one[0]] -= (k[h] * d + kd[h] * np.sum(grad * v[one[0]])) * grad
+    return f
+
+
 def integrate(x, xp, inv_mass, f, gravity, dt, c):
     """x+ = x + (1 - c)(x - x-) + (w f + g) dt^2 for free particles; pinned keep x."""
     a = inv_mass[:, None] * f + np.asarray(gravity)[None, :]
@@ -264,7 +285,8 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
                   segments=None):
     """One substep of the cloth kernel against sphere colliders, fresh contact memory (copies).
 
-    ``cl``: dict with ``inv_mass gravity sp_i sp_j sp_rest sp_k sp_kd`` and the constraint arrays of
+    ``cl``: dict with ``inv_mass gravity sp_i sp_j sp_rest sp_k sp_kd`` (and optionally the hinges' ``h_i h_k h_kd
+    h_rest``) and the constraint arrays of
     :func:`distance_sweep`; ``pins``: (idx, from, to) with the pins at ``alpha_pins`` of the way;
     ``pts``: (verts, bary, skin, spheres). Steps (the kernel's module docstring): explicit springs and
     gravity, Verlet with air damping; pins; contact half-spaces; ``iterations`` x {constraint sweep,
@@ -276,6 +298,8 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     w = cl["inv_mass"]
     idx = np.stack([cl["sp_i"], cl["sp_j"]], axis=1)
     f = spring_forces(x, xp, dt, idx, cl["sp_rest"], cl["sp_k"], cl["sp_kd"])
+    if "h_i" in cl:
+        f += hinge_forces(x, xp, dt, cl["h_i"], cl["h_k"], cl["h_kd"], cl["h_rest"])
     x_new = integrate(x, xp, w, f, cl["gravity"], dt, c_air)
     xp_new = x.copy()
     pin_idx, pin_from, pin_to = pins

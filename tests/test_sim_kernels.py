@@ -9,6 +9,7 @@ from vfit_engine.kernels.collide_sphere import collide_spheres
 from vfit_engine.kernels.integrate import integrate_verlet
 from vfit_engine.kernels.springs import eval_spring_forces
 from vfit_engine.kernels.strain_limit import limit_strain
+from vfit_engine.sim.bending import build_hinges
 
 
 def _random_cloth(seed, n=40, s=120):
@@ -535,6 +536,12 @@ def test_cloth_substep_matches_reference(iterations, split):
     sp_order, sp_seg = segments(segment_of(half, sp[:, 0], sp[:, 1]))
     c_order, c_seg = segments(segment_of(half, c["i"], c["j"], c["corner"]))
     p_order, p_seg = segments(segment_of(half, verts[:, 0], verts[:, 1], verts[:, 2]))
+    hinges = build_hinges(fv, fo, pos, 1.0)
+    pick = rng.choice(hinges.count, 30, replace=False)
+    h_i = hinges.indices[pick]
+    h_k, h_kd, h_rest = rng.uniform(0, 2e-3, 30), rng.uniform(0, 2e-6, 30), rng.uniform(-0.3, 0.3, 30)
+    h_order, h_seg = segments(segment_of(half, *h_i.T))
+    h_i, h_k, h_kd, h_rest = (np.ascontiguousarray(a[h_order]) for a in (h_i, h_k, h_kd, h_rest))
     if split:
         assert np.all(np.diff(c_seg) > 10) and np.all(np.diff(p_seg) > 10) and np.all(np.diff(sp_seg) > 5)
     sp, sp_rest, sp_k, sp_kd = sp[sp_order], sp_rest[sp_order], sp_k[sp_order], sp_kd[sp_order]
@@ -542,7 +549,7 @@ def test_cloth_substep_matches_reference(iterations, split):
     verts, bary, skin = verts[p_order], bary[p_order], skin[p_order]
     gravity = np.array([0.0, -9.81, 0.0])
     cl = dict(inv_mass=w, gravity=gravity, sp_i=sp[:, 0].copy(), sp_j=sp[:, 1].copy(), sp_rest=sp_rest, sp_k=sp_k,
-              sp_kd=sp_kd, **c)
+              sp_kd=sp_kd, h_i=h_i, h_k=h_k, h_kd=h_kd, h_rest=h_rest, **c)
     spheres = np.array([[0.0, 0.0, 0.0, 0.1], [0.06, 0.0, 0.03, 0.095]])
     dt, c_air, reach, friction, max_push, c_contact = 1 / 480, 0.01, 0.002, 0.8, 0.001, 0.1
     ref_x, ref_xp = naive_sim.cloth_substep(x, xp, cl, (pin_idx, pin_from, pin_to), (verts, bary, skin, spheres), dt,
@@ -551,7 +558,8 @@ def test_cloth_substep_matches_reference(iterations, split):
     arrays = ClothArrays(inv_mass=w, gravity=gravity, sp_i=cl["sp_i"], sp_j=cl["sp_j"], sp_rest=sp_rest, sp_k=sp_k,
                          sp_kd=sp_kd, c_i=c["i"], c_j=c["j"], c_lo=c["lo"], c_hi=c["hi"], c_alpha=c["alpha"],
                          c_relax=c["relax"], c_corner=c["corner"], c_cos_lo=c["cos_lo"], c_cos_hi=c["cos_hi"],
-                         c_once=c["once"], sp_seg=sp_seg, c_seg=c_seg)
+                         c_once=c["once"], sp_seg=sp_seg, c_seg=c_seg, h_i=h_i, h_k=h_k, h_kd=h_kd, h_rest=h_rest,
+                         h_seg=h_seg)
     prm = StepParams(dt=dt, c_air=c_air, iterations=iterations, reach=reach, friction=friction, max_push=max_push,
                      c_contact=c_contact, reuse=0.0, use_grid=False)
     st = _fresh_contact_state(pts.count, n, c["i"].size)

@@ -1,5 +1,4 @@
 """SolverVerlet, Model, springs-from-topology and materials."""
-import json
 
 import numpy as np
 import pytest
@@ -9,7 +8,6 @@ from vfit_engine.collide.spheres import SphereCollider
 from vfit_engine.errors import InputError
 from vfit_engine.garment.springs import (BEND, SHEAR, STRUCTURAL, build_springs, grid_polygons, polygon_areas,
                                          spring_constants, vertex_masses)
-from vfit_engine.sim.materials import PRESETS, Material, load_material, resolve_material
 from vfit_engine.sim.model import Model
 from vfit_engine.sim.contact_points import contact_points
 from vfit_engine.sim.solver_verlet import ContactSettings, SolverVerlet, VerletSettings
@@ -85,39 +83,6 @@ def test_grid_structural_spring_constant_equals_modulus():
 
 
 # -- materials -----------------------------------------------------------------------
-
-def test_presets_and_material_json(tmp_path):
-    assert {"cotton", "denim", "silk", "jersey"} <= set(PRESETS)
-    assert PRESETS["denim"].areal_density > PRESETS["cotton"].areal_density > PRESETS["silk"].areal_density
-    good = PRESETS["cotton"].to_dict()
-    good.pop("name")
-    path = tmp_path / "linen.json"
-    path.write_text(json.dumps(good))
-    mat = load_material(path)
-    assert mat.name == "linen" and mat.stretch_stiffness == PRESETS["cotton"].stretch_stiffness
-    assert resolve_material(str(path)) == mat
-    for bad in ({**good, "areal_density": float("nan")}, {**good, "shear_stiffness": -1.0},
-                {k: v for k, v in good.items() if k != "bend_stiffness"}, {**good, "colour": "red"}):
-        path.write_text(json.dumps(bad))
-        with pytest.raises(InputError):
-            load_material(path)
-    path.write_text('{"areal_density": NaN}')
-    with pytest.raises(InputError):
-        load_material(path)
-    path.write_text("{not json")
-    with pytest.raises(InputError):
-        load_material(path)
-    with pytest.raises(InputError):
-        resolve_material("tweed")
-    with pytest.raises(InputError):
-        Material("x", 0.1, 1, 1, 1, 1, 1, float("inf"))
-    # values outside a fabric's physical range are refused, naming the key and the range
-    for key, value in (("stretch_stiffness", 0.0), ("stretch_stiffness", 1e12), ("max_strain", 0.0),
-                       ("areal_density", 50.0)):
-        path.write_text(json.dumps({**good, key: value}))
-        with pytest.raises(InputError, match=f"{key} .* outside the physical range"):
-            load_material(path)
-
 
 # -- solver ----------------------------------------------------------------------------
 

@@ -17,7 +17,7 @@
 * **Where it is tight**: each edge belongs to the body part under its midpoint (within ``PART_REACH``;
   the body's skin-weight parts); ``strain_by_body_part`` gives each part's edges, p99 and max strain,
   and ``too_tight`` the parts where some edge is stretched beyond what the fabric gives
-  (``Material.max_strain``): the body forces more than the garment can take there -- it cannot be worn.
+  (``Material.wearable_stretch``): the body forces more than the garment can take there -- it cannot be worn.
 """
 from __future__ import annotations
 
@@ -178,7 +178,7 @@ def strain_by_part(setup, pos, edge_strain):
     part = np.full(edges.shape[0], -1, dtype=np.int64)
     near = tri >= 0
     part[near] = setup.body_parts[setup.body_tris[tri[near], 0]]
-    limit = float(setup.material.max_strain)
+    limit = float(setup.material.wearable_stretch)
     rows, tight = {}, []
     for k, name in enumerate(PARTS):
         sel = (part == k) & (l0 > 0)

@@ -20,7 +20,7 @@ the plane; for an opening, its draped length over its length as given), ``max_st
 yarn strain there, edges >= 3 mm), ``pressure_kpa_max`` (:mod:`.maps`) and the verdict:
 
 * ``tight``  the cloth round the region is stretched by more than ``TIGHT_SHARE`` of the stretch the
-  fabric gives (``Material.max_strain``: cotton 10 % -> 3 %, jersey 30 % -> 9 %, denim 5 % -> 1.5 %),
+  fabric gives (``Material.wearable_stretch``: cotton 10 % -> 3 %, jersey 30 % -> 9 %, denim 5 % -> 1.5 %),
   or (an opening) the body forces it wider than it is made (one edge beyond the fabric's limit does not
   make a region tight: ``too_tight`` in the report lists those by body part);
 * ``loose``  not tight, and more than ``LOOSE_EASE_CM`` of the region's ease (bust, chest, underbust,
@@ -186,7 +186,7 @@ class FitTable:
         edges = mesh.edges()
         l0 = np.linalg.norm(mesh.verts[edges[:, 1]] - mesh.verts[edges[:, 0]], axis=1)
         length = np.linalg.norm(pos[edges[:, 1]] - pos[edges[:, 0]], axis=1)
-        limit = float(setup.material.max_strain)
+        limit = float(setup.material.wearable_stretch)
         out = []
         for name, side, plane, reach, body_girth, half in self.regions:
             loops = plane.loops_round(sections, pos, max(reach, 3.0 * body_girth / (2 * np.pi)), half)

@@ -4,7 +4,7 @@ One substep (Verlet 1967 / Jakobsen 2001 for the integration; Provot 1995 and XP
 Mueller & Chentanez 2016, for the constraints; contacts as inequality constraints solved in
 the same Gauss-Seidel loop, as in position based dynamics, Mueller et al. 2007)::
 
-    1. explicit forces: damped Hooke springs and gravity; position Verlet with air damping:
+    1. explicit forces: damped Hooke springs, bending hinges and gravity; position Verlet with air damping:
        x+ = x + (1 - c)(x - x-) + (w f + g) dt^2
     2. pinned particles follow their targets
     3. contact generation: every contact point p -- a cloth vertex, or a point of a cloth
@@ -62,6 +62,7 @@ import math
 from collections import namedtuple
 
 from vfit_engine._jit import njit, prange
+from vfit_engine.kernels.bending import _add_hinge_forces
 from vfit_engine.kernels.collide_mesh import _query_point
 from vfit_engine.kernels.integrate import _advance_in_place, _move_pins
 from vfit_engine.kernels.springs import _add_spring_forces
@@ -72,10 +73,13 @@ from vfit_engine.kernels.springs import _add_spring_forces
 #: c_relax (C,); c_corner (C,) int64 (a shear limit's corner, else -1) and c_cos_lo, c_cos_hi (C,): the
 #: cosines of its corner's smallest and largest angle (an angle constraint instead of a distance); c_once
 #: (C,) bool: solved in the full sweeps only (weak restoring springs, never in the active set); sp_seg,
-#: c_seg (4,) int64: the springs' and constraints' segments (module docstring, "Two threads").
+#: c_seg (4,) int64: the springs' and constraints' segments (module docstring, "Two threads"); bending
+#: hinges h_i (H, 4) int64, h_k (H,) N m, h_kd (H,) N m s, h_rest (H,) rad and their segments h_seg (4,)
+#: (:mod:`.bending`).
 ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", "sp_rest", "sp_k", "sp_kd",
                                          "c_i", "c_j", "c_lo", "c_hi", "c_alpha", "c_relax", "c_corner", "c_cos_lo",
-                                         "c_cos_hi", "c_once", "sp_seg", "c_seg"])
+                                         "c_cos_hi", "c_once", "sp_seg", "c_seg", "h_i", "h_k", "h_kd", "h_rest",
+                                         "h_seg"])
 
 #: Contact points: pt_v (P, 3) int64 vertices and pt_b (P, 3) float64 barycentric weights (cloth
 #: vertex i is (i, i, i) with (1, 0, 0)); pt_skin (P,) m, the clearance each keeps; spheres (S, 4)
@@ -458,6 +462,9 @@ def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub
                                cl.sp_seg[g + 1])
         _add_spring_forces(x, xp, 1.0 / dt, cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd, st.f, cl.sp_seg[2],
                            cl.sp_seg[3])
+        for g in prange(2):
+            _add_hinge_forces(x, xp, 1.0 / dt, cl.h_i, cl.h_k, cl.h_kd, cl.h_rest, st.f, cl.h_seg[g], cl.h_seg[g + 1])
+        _add_hinge_forces(x, xp, 1.0 / dt, cl.h_i, cl.h_k, cl.h_kd, cl.h_rest, st.f, cl.h_seg[2], cl.h_seg[3])
         _advance_in_place(x, xp, w, st.f, gravity, keep, dt * dt)
         _move_pins(x, pin_idx, pin_from, pin_to, (s + 1.0) / sub_total)
         for g in prange(2):

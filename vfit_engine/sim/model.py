@@ -49,6 +49,8 @@ class Model:
     corners : (k, 3) int64
         Polygon corners whose angle shear changes: (previous, corner, next) vertex of every corner of
         the polygons with 4 or more corners (:func:`vfit_engine.garment.springs.polygon_corners`).
+    hinges : Hinges or None
+        The bending hinges (:mod:`vfit_engine.sim.bending`); None: the bend springs bend the cloth.
     """
 
     rest_pos: np.ndarray
@@ -62,10 +64,11 @@ class Model:
     pin_indices: np.ndarray
     max_strain: float = 0.10
     corners: np.ndarray = None
+    hinges: object = None
 
     @classmethod
     def create(cls, rest_pos, spring_indices, spring_rest, spring_k, spring_kd, spring_type, mass,
-               pin_indices=(), max_strain=0.10, corners=None):
+               pin_indices=(), max_strain=0.10, corners=None, hinges=None):
         """Validate raw arrays and build a model; ``inv_mass`` is 1/mass, 0 at pins.
 
         Parameters
@@ -79,6 +82,7 @@ class Model:
         max_strain : float
         corners : (k, 3) int or None
             Polygon corners (none when None).
+        hinges : Hinges or None
         """
         pos = _frozen(rest_pos, np.float64, (3,), "rest_pos")
         n = pos.shape[0]
@@ -118,11 +122,13 @@ class Model:
                           "corners")
         if corners.size and (corners.min() < 0 or corners.max() >= n):
             raise InputError("corners refers to a particle that does not exist")
+        if hinges is not None and hinges.count and (hinges.indices.min() < 0 or hinges.indices.max() >= n):
+            raise InputError("a hinge refers to a particle that does not exist")
         return cls(pos, idx, arrays["spring_rest"], arrays["spring_k"], arrays["spring_kd"], stype,
-                   m, w, pins, float(max_strain), corners)
+                   m, w, pins, float(max_strain), corners, hinges)
 
     @classmethod
-    def from_polygons(cls, face_verts, face_offsets, rest_pos, material, pin_indices=()):
+    def from_polygons(cls, face_verts, face_offsets, rest_pos, material, pin_indices=(), uvs=None, face_uvs=None):
         """Springs and masses of a polygon mesh made of ``material``.
 
         Parameters
@@ -134,7 +140,11 @@ class Model:
         material : Material or str
             A :class:`vfit_engine.sim.materials.Material`, a preset name or a JSON path.
         pin_indices : (p,) int64
+        uvs : (t, 2) float64 or None;  face_uvs : (k,) int64 or None
+            Texture coordinates per face corner: warp and weft follow them where they are a sewing
+            pattern (:mod:`vfit_engine.sim.bending`).
         """
+        from vfit_engine.sim.bending import build_hinges
         from vfit_engine.garment.springs import build_springs, polygon_corners, spring_constants, vertex_masses
         from vfit_engine.sim.materials import resolve_material
 
@@ -142,8 +152,10 @@ class Model:
         springs = build_springs(face_verts, face_offsets, rest_pos)
         k, kd = spring_constants(springs, material.stiffness, material.damping)
         mass = vertex_masses(face_verts, face_offsets, rest_pos, material.areal_density)
+        hinges = build_hinges(face_verts, face_offsets, rest_pos, material.bending_rigidity, uvs, face_uvs,
+                              damping=material.bending_damping)
         return cls.create(rest_pos, springs.indices, springs.rest, k, kd, springs.type, mass,
-                          pin_indices, material.max_strain, polygon_corners(face_verts, face_offsets))
+                          pin_indices, material.wearable_stretch, polygon_corners(face_verts, face_offsets), hinges)
 
     @property
     def particle_count(self):

@@ -65,6 +65,31 @@ RELAX_MIN = 0.1
 BEND_LIMIT_SOFTNESS = 10.0
 
 
+def _stable_scale(inv_mass, ksum, dsum, dt, safety):
+    """(n,) float64: per vertex, the factor (<= 1) that brings its explicit stiffness ``ksum`` (N/m) and damping
+    ``dsum`` (N s/m) within ``safety`` of Gershgorin's bound on the step (module docstring)."""
+    demand = inv_mass * (2.0 * ksum * dt * dt + 4.0 * dsum * dt)
+    scale = np.ones(inv_mass.shape[0])
+    np.divide(4.0 * safety, demand, out=scale, where=demand > 4.0 * safety)
+    return scale
+
+
+def _gradient_norm(pos, indices, m):
+    """(h,) float64, 1/m: |d theta / d x_m| at ``pos`` of vertex ``m`` (0-3) of every hinge
+    (:mod:`vfit_engine.kernels.bending`)."""
+    x0, x1, x2, x3 = (pos[indices[:, k]] for k in range(4))
+    e = x1 - x0
+    le = np.maximum(np.linalg.norm(e, axis=1), 1e-300)
+    n0, n1 = np.cross(e, x2 - x0), np.cross(x3 - x0, e)
+    g2 = -(le / np.maximum(np.sum(n0 * n0, 1), 1e-300))[:, None] * n0
+    g3 = -(le / np.maximum(np.sum(n1 * n1, 1), 1e-300))[:, None] * n1
+    t2 = np.einsum("ij,ij->i", x2 - x0, e) / le ** 2
+    t3 = np.einsum("ij,ij->i", x3 - x0, e) / le ** 2
+    g1 = -t2[:, None] * g2 - t3[:, None] * g3
+    g = (-(g1 + g2 + g3), g1, g2, g3)[m]
+    return np.linalg.norm(g, axis=1)
+
+
 def _corner_angle(pos, ends, corner):
     """(k,) float64, radians: the angle at ``corner`` (k,) between ``ends`` (k, 2)."""
     u = pos[ends[:, 0]] - pos[corner]
@@ -116,6 +141,8 @@ class SolverVerlet:
         self.max_push = math.inf
         self.contact_queries = 0
         self.softened_fraction = 0.0
+        self.softened_hinges = 0.0
+        self._hinge_g = None
         n = model.particle_count
         self._inv_mass = np.ascontiguousarray(model.inv_mass, dtype=np.float64).copy()
         self._gravity = np.ascontiguousarray(self.settings.gravity, dtype=np.float64)
@@ -285,13 +312,15 @@ class SolverVerlet:
 
     # -- constants ------------------------------------------------------------------------
     def effective_constants(self, dt):
-        """The explicit springs' constants after stability softening at step ``dt`` (s).
+        """The explicit springs' and hinges' constants after stability softening at step ``dt`` (s).
 
         Returns
         -------
         k : (s,) float64, N/m
             0 for springs that are constraints (their stiffness lives in the constraint).
         kd : (s,) float64, N s/m
+        hk : (h,) float64, N m;  hkd : (h,) float64, N m s
+            The bending hinges' (empty without hinges).
         """
         m = self.model
         from vfit_engine.garment.springs import SHEAR, STRUCTURAL
@@ -303,27 +332,62 @@ class SolverVerlet:
         if self.settings.shear_limit_deg is not None:
             k[m.spring_type == SHEAR] = 0.0
         kd = np.array(m.spring_kd)
+        hinges = m.hinges
+        hk = np.zeros(0) if hinges is None else np.array(hinges.k)
+        hkd = np.zeros(0) if hinges is None else np.array(hinges.kd)
         safety = self.settings.stability_safety
-        if safety > 0 and m.spring_count:
+        if safety > 0 and (m.spring_count or hk.size):
             n = m.particle_count
             i, j = m.spring_indices[:, 0], m.spring_indices[:, 1]
             ksum = np.bincount(i, k, n) + np.bincount(j, k, n)
             dsum = np.bincount(i, kd, n) + np.bincount(j, kd, n)
-            demand = m.inv_mass * (2.0 * ksum * dt * dt + 4.0 * dsum * dt)
-            scale_v = np.ones(n)
-            np.divide(4.0 * safety, demand, out=scale_v, where=demand > 4.0 * safety)
+            scale_v = _stable_scale(m.inv_mass, ksum, dsum, dt, safety)
             scale = np.minimum(scale_v[i], scale_v[j])
-            self.softened_fraction = float(np.mean(scale < 1.0))
+            self.softened_fraction = float(np.mean(scale < 1.0)) if scale.size else 0.0
             k *= scale
             kd *= scale
-        return k, kd
+            if hk.size:
+                # the hinges against their own bound (a spring's damping, stiff on a light vertex, must not
+                # soften the bending that decides the drape's shape): a hinge's stiffness at vertex m is
+                # k |g_m| sum_l |g_l| (Gershgorin on k g g^T)
+                g = self._hinge_gradient_norms()
+                row = g * g.sum(axis=1, keepdims=True)
+                flat = hinges.indices.ravel()
+                h_v = _stable_scale(m.inv_mass, np.bincount(flat, (hk[:, None] * row).ravel(), n),
+                                    np.bincount(flat, (hkd[:, None] * row).ravel(), n), dt, safety)
+                h_scale = h_v[hinges.indices].min(axis=1)
+                self.softened_hinges = float(np.mean(h_scale < 1.0))
+                hk *= h_scale
+                hkd *= h_scale
+        return k, kd, hk, hkd
+
+    def _hinge_gradient_norms(self):
+        """(h, 4) float64, 1/m: |d theta / d x| of every hinge's vertices at rest (:mod:`.bending` kernel)."""
+        if self._hinge_g is None:
+            h, pos = self.model.hinges, self.model.rest_pos
+            self._hinge_g = np.stack([_gradient_norm(pos, h.indices, m) for m in range(4)], axis=1)
+        return self._hinge_g
+
+    def max_stable_dt(self):
+        """The largest step (s) at which no hinge is softened (``stability_safety`` of the bound): the bending
+        is the material's everywhere (springs may still be softened: their damping only slows motion)."""
+        lo, hi = 1e-7, 1.0
+        for _ in range(60):
+            mid = math.sqrt(lo * hi)
+            self.effective_constants(mid)
+            if self.softened_hinges > 0:
+                hi = mid
+            else:
+                lo = mid
+        self._const_dt = None
+        return lo
 
     def _prepare(self, dt):
         if self._const_dt == dt:
             return
         from vfit_engine.kernels.cloth import ClothArrays
 
-        k, kd = self.effective_constants(dt)
+        k, kd, hk, hkd = self.effective_constants(dt)
         keep = np.flatnonzero((k > 0) | (kd > 0))
         m = self.model
         # the explicit springs, given numbering (init_state), and both families in the kernel's
@@ -332,6 +396,13 @@ class SolverVerlet:
         s_order, sp_seg = segments(segment_of(self._half, *self._explicit[0].T))
         sp = keep[s_order]
         c_order, c_seg = segments(segment_of(self._half, self._c_i, self._c_j, corner))
+        if m.hinges is not None:
+            hi, rest = m.hinges.indices, m.hinges.rest_angle
+        else:
+            hi, rest = np.zeros((0, 4), np.int64), np.zeros(0)
+        self._explicit_hinges = (hi, hk, hkd, rest)
+        h_order, h_seg = segments(segment_of(self._half, *hi.T)) if hi.size else (np.zeros(0, np.int64),
+                                                                                   np.zeros(4, np.int64))
 
         def arr(a, order):
             return np.ascontiguousarray(a[order])
@@ -342,7 +413,8 @@ class SolverVerlet:
             arr(rank[self._c_i], c_order), arr(rank[self._c_j], c_order), arr(self._c_lo, c_order), arr(self._c_hi, c_order), arr(self._c_alpha, c_order),
             arr(self._c_relax, c_order), arr(np.where(corner >= 0, rank[np.maximum(corner, 0)], -1), c_order),
             arr(np.cos(self._t_lo), c_order), arr(np.cos(self._t_hi), c_order),
-            arr(self._c_kind == KIND_SHEAR, c_order), sp_seg, c_seg)
+            arr(self._c_kind == KIND_SHEAR, c_order), sp_seg, c_seg, arr(rank[hi], h_order), arr(hk, h_order),
+            arr(hkd, h_order), arr(rest, h_order), h_seg)
         self._c_air = 1.0 - math.exp(-self.settings.air_damping * dt)
         self._const_dt = dt
 
@@ -354,6 +426,7 @@ class SolverVerlet:
         springs + gravity), so the first steps follow ``pos + vel t + a0 t^2 / 2`` (exactly, for
         free fall without air damping).
         """
+        from vfit_engine.kernels.bending import eval_hinge_forces
         from vfit_engine.kernels.springs import eval_spring_forces
 
         dt = float(dt)
@@ -364,6 +437,7 @@ class SolverVerlet:
             raise ValueError(f"pos must have shape ({m.particle_count}, 3)")
         v = np.zeros_like(x) if vel is None else np.broadcast_to(np.asarray(vel, dtype=np.float64), x.shape)
         f = eval_spring_forces(x, np.ascontiguousarray(x - v * dt), dt, *self._explicit)
+        f += eval_hinge_forces(x, np.ascontiguousarray(x - v * dt), dt, *self._explicit_hinges)
         free = (self._inv_mass > 0)[:, None]
         a0 = np.where(free, self._inv_mass[:, None] * f + self._gravity, 0.0)
         v = np.where(free, v, 0.0)

@@ -1,0 +1,134 @@
+"""Bending hinges: the kernel against a NumPy reference, the energy of a bent sheet against B kappa^2 / 2,
+the moment of a bent strip against B kappa, and the step the solver takes with them."""
+import math
+
+import numpy as np
+import pytest
+
+from vfit_engine.garment.springs import grid_polygons
+from vfit_engine.kernels.bending import eval_hinge_forces
+from vfit_engine.sim.bending import bending_energy, build_hinges, hinge_angles
+from vfit_engine.textile.specimen import disc
+
+
+def _reference_forces(pos, vel, idx, k, kd, rest):
+    """Slow reference: the energy's gradient by central differences of hinge_angles, hinge by hinge."""
+    f = np.zeros_like(pos)
+    eps = 1e-7
+    for h in range(idx.shape[0]):
+        ids = idx[h]
+        grad = np.zeros((4, 3))
+        for m in range(4):
+            for c in range(3):
+                p, q = pos.copy(), pos.copy()
+                p[ids[m], c] += eps
+                q[ids[m], c] -= eps
+                grad[m, c] = (hinge_angles(idx[h:h + 1], p)[0] - hinge_angles(idx[h:h + 1], q)[0]) / (2 * eps)
+        d = hinge_angles(idx[h:h + 1], pos)[0] - rest[h]
+        rate = np.sum(grad * vel[ids])
+        f[ids] -= (k[h] * d + kd[h] * rate) * grad
+    return f
+
+
+def _cylinder(pos, kappa, phi):
+    """The flat sheet ``pos`` (x-z plane) rolled isometrically into a cylinder of curvature ``kappa``, its
+    axis at ``phi`` to z."""
+    u = math.cos(phi) * pos[:, 0] + math.sin(phi) * pos[:, 2]
+    v = -math.sin(phi) * pos[:, 0] + math.cos(phi) * pos[:, 2]
+    a = u * kappa
+    return np.stack([np.sin(a) / kappa, (1 - np.cos(a)) / kappa, v], axis=1)
+
+
+def test_kernel_matches_the_reference_on_random_hinges():
+    rng = np.random.default_rng(7)
+    pos, fv, fo = grid_polygons(5, 4, 0.04, 0.03, quads=False)
+    h = build_hinges(fv, fo, pos, 5e-6, damping=0.01)
+    x = pos + rng.normal(0, 2e-3, pos.shape)
+    xp = x - rng.normal(0, 1e-4, pos.shape)
+    dt = 1e-3
+    rest = rng.uniform(-0.5, 0.5, h.count)
+    k, kd = rng.uniform(1e-6, 1e-5, h.count), rng.uniform(0, 1e-7, h.count)
+    got = eval_hinge_forces(x, xp, dt, h.indices, k, kd, rest)
+    want = _reference_forces(x, (x - xp) / dt, h.indices, k, kd, rest)
+    np.testing.assert_allclose(got, want, atol=1e-9 * np.abs(want).max(), rtol=1e-5)
+    # internal forces: no net force, no net torque
+    np.testing.assert_allclose(got.sum(axis=0), 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.cross(x, got).sum(axis=0), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("mesh", ["disc", "quads"])
+def test_a_rolled_sheet_stores_B_kappa_squared_over_two(mesh):
+    b, kappa = 7e-6, 12.0
+    if mesh == "disc":
+        pos, fv, fo = disc(0.1, 0.005)
+        directions = np.radians([0, 20, 45, 70, 90, 135])
+    else:
+        pos, fv, fo = grid_polygons(41, 41, 0.2, 0.2, quads=True)
+        directions = np.radians([0, 90])  # along its grid lines (diagonal bends are stiffer: module docstring)
+    h = build_hinges(fv, fo, pos, b)
+    inner = np.all(np.hypot(pos[h.indices, 0], pos[h.indices, 2]) < 0.06, axis=1)
+    # the area each hinge stands for: a third of its two triangles' (k = B |e|^2 / (A0 + A1) undone)
+    x0, x1, x2, x3 = (pos[h.indices[:, m]] for m in range(4))
+    tri_area = 0.5 * (np.linalg.norm(np.cross(x1 - x0, x2 - x0), axis=1)
+                      + np.linalg.norm(np.cross(x1 - x0, x3 - x0), axis=1))
+    weight = h.k * tri_area / (b * np.sum((x1 - x0) ** 2, axis=1))  # 1, or 1/2 for each of a quad's splits
+    area = np.sum((weight * tri_area / 3.0)[inner])
+    for phi in directions:
+        theta = hinge_angles(h.indices, _cylinder(pos, kappa, phi))
+        energy = 0.5 * np.sum((h.k * theta ** 2)[inner])
+        assert energy / (0.5 * b * kappa ** 2 * area) == pytest.approx(1.0, abs=0.06), np.degrees(phi)
+
+
+def test_a_bent_strip_carries_the_moment_B_kappa():
+    """M = dE/dkappa / (length x width) on a strip rolled to curvature kappa, from its energy (the hinges'
+    moments summed): B kappa within the mesh's error."""
+    b = 20e-6
+    pos, fv, fo = grid_polygons(61, 11, 0.3, 0.05, quads=True)
+    h = build_hinges(fv, fo, pos, b)
+    for kappa in (2.0, 10.0, 30.0):
+        dk = 1e-3 * kappa
+        de = bending_energy(h, _cylinder(pos, kappa + dk, 0.0)) - bending_energy(h, _cylinder(pos, kappa - dk, 0.0))
+        moment = de / (2 * dk) / (0.3 * 0.05)
+        assert moment == pytest.approx(b * kappa, rel=0.06)
+
+
+def test_warp_and_weft_follow_pattern_uvs():
+    pos, fv, fo = grid_polygons(11, 11, 0.1, 0.1, quads=True)
+    uvs = pos[:, [0, 2]] * 5.0  # a flat pattern laid out at one scale
+    iso = build_hinges(fv, fo, pos, (10e-6, 2e-6))
+    aniso = build_hinges(fv, fo, pos, (10e-6, 2e-6), uvs=uvs, face_uvs=fv)
+    assert not iso.anisotropic and aniso.anisotropic
+    bend_u = hinge_angles(aniso.indices, _cylinder(pos, 10.0, 0.0))  # curved along x = U: across the weft
+    bend_v = hinge_angles(aniso.indices, _cylinder(pos, 10.0, math.pi / 2))  # along z = V, the warp
+    e_u, e_v = np.sum(aniso.k * bend_u ** 2), np.sum(aniso.k * bend_v ** 2)
+    assert e_v / e_u == pytest.approx(5.0, rel=0.05)
+    # UVs that are a texture atlas (one island scaled 3x) leave the cloth isotropic, with the mean rigidity
+    atlas = uvs.copy()
+    atlas[pos[:, 0] > 0] *= 3.0
+    assert not build_hinges(fv, fo, pos, (10e-6, 2e-6), uvs=atlas, face_uvs=fv).anisotropic
+    np.testing.assert_allclose(iso.k.sum(), build_hinges(fv, fo, pos, 6e-6).k.sum())
+
+
+def test_a_garment_s_own_folds_are_its_rest_and_slivers_carry_no_hinge():
+    pos, fv, fo = grid_polygons(3, 2, 0.02, 0.01, quads=False)
+    folded = pos.copy()
+    folded[2::3, 1] = 0.004  # one column lifted: the sheet bent along a line
+    h = build_hinges(fv, fo, folded, 1e-5)
+    np.testing.assert_allclose(bending_energy(h, folded), 0.0, atol=1e-18)
+    assert bending_energy(h, pos) > 0
+    sliver = np.array([[0, 0, 0], [1, 0, 0], [0.5, 0, 1e-6], [0.5, 0, 1.0]], float)
+    assert build_hinges(np.array([0, 1, 2, 1, 0, 3]), np.array([0, 3, 6]), sliver, 1e-5).count == 0
+
+
+def test_the_solver_step_holds_the_hinges_stiffness():
+    from vfit_engine.sim.model import Model
+    from vfit_engine.sim.solver_verlet import SolverVerlet
+
+    pos, fv, fo = disc(0.05, 0.005)
+    model = Model.from_polygons(fv, fo, pos, "denim")
+    solver = SolverVerlet(model)
+    dt = solver.max_stable_dt()
+    solver.effective_constants(dt)
+    assert solver.softened_hinges == 0.0
+    solver.effective_constants(4 * dt)
+    assert solver.softened_hinges > 0.0

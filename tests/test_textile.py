@@ -1,0 +1,68 @@
+"""The fabric tests on the solver: the cantilever against Peirce and the elastica, the Cusick drape test
+(reduced: 10 mm meshes), and the benchmarks' refusal of bad materials."""
+import json
+
+import pytest
+
+from vfit_engine.sim.materials import PRESETS, material_from_dict
+from vfit_engine.textile.cantilever import bending_length, peirce_overhang
+from vfit_engine.textile.cusick import drape_test
+
+
+def _fabric(b_uN_m, grams, name="test"):
+    return material_from_dict({"name": name, "areal_density_g_m2": grams, "bending_rigidity_uN_m": b_uN_m,
+                               "stretch_stiffness_N_m": 3000, "shear_stiffness_N_m": 50, "wearable_stretch": 0.1,
+                               "friction": 0.4})
+
+
+def test_peirce_overhang_at_the_test_angle():
+    # Peirce's approximation: l = 1.963 c at 41.5 degrees (the heavy elastica gives 2.000 c, the test's c = l / 2)
+    assert peirce_overhang(1.0) == pytest.approx(1.9634, abs=1e-4)
+
+
+@pytest.mark.parametrize("fabric", [(1.0, 40, "chiffon"), (6.0, 120, "shirting"), (60.0, 350, "canvas")],
+                         ids=lambda f: f[2])
+def test_cantilever_bending_length_matches_peirce_at_10_mm(fabric):
+    material = _fabric(*fabric)
+    r = bending_length(material, edge=0.01)
+    assert abs(r["angle_deg"] - 41.5) <= 0.1
+    assert r["softened_hinges"] == 0.0 and r["settled"]
+    assert r["bending_length_m"] == pytest.approx(material.bending_length, rel=0.10)
+
+
+def test_cusick_drape_rises_with_bending_rigidity_and_folds():
+    soft = drape_test(_fabric(2.0, 60, "soft"), edge=0.01)
+    stiff = drape_test(_fabric(16.0, 60, "stiff"), edge=0.01)
+    for r in (soft, stiff):
+        assert r["settled"] and r["softened_hinges"] == 0.0
+        assert 4 <= r["nodes"] <= 12
+        assert 0.0 < r["drape_coefficient"] < 1.0
+    assert stiff["drape_coefficient"] > soft["drape_coefficient"] + 0.1
+
+
+def test_cusick_silk_lands_in_its_published_range():
+    r = drape_test(PRESETS["silk"], edge=0.01)
+    assert 0.20 <= r["drape_coefficient"] <= 0.45  # FABRICS.md: silk 20-40 % (30/18 cm)
+
+
+@pytest.mark.parametrize("bench", ["bench_cantilever", "bench_cusick"])
+def test_benchmarks_refuse_a_bad_material_naming_the_key(tmp_path, capsys, bench):
+    import importlib.util
+    from pathlib import Path
+
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps({**PRESETS["cotton"].to_dict(), "bending_rigidity_uN_m": -4}))
+    spec = importlib.util.spec_from_file_location(bench, Path(__file__).parents[1] / "benchmarks" / f"{bench}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--material", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "bending_rigidity_uN_m -4 uN m is outside the physical range" in err and str(path) in err
+
+
+def test_cusick_is_the_same_at_7_and_10_mm():
+    """Resolution independence (reduced: the benchmark compares 5 and 10 mm, BENCHMARKS.md)."""
+    coarse = drape_test(PRESETS["cotton"], edge=0.010)
+    fine = drape_test(PRESETS["cotton"], edge=0.007)
+    assert fine["vertices"] > 1.8 * coarse["vertices"]
+    assert abs(fine["drape_coefficient"] - coarse["drape_coefficient"]) <= 0.05

@@ -1,0 +1,109 @@
+"""Numba kernel: the bending forces of dihedral hinges (discrete shells).
+
+A hinge is two triangles sharing the edge ``x0 -> x1``, with ``x2`` opposite it in the first and ``x3`` in
+the second. Its bend angle ``theta`` (0 flat, signed, in (-pi, pi]) comes from the triangles' normals
+``n0 = e x (x2 - x0)``, ``n1 = (x3 - x0) x e`` (``e = x1 - x0``)::
+
+    theta = atan2((n0 x n1) . e / |e|, n0 . n1)
+
+and its gradient (Bridson, Marino & Fedkiw 2003; Wardetzky et al. 2007)::
+
+    d theta/d x2 = -|e| n0 / |n0|^2,   d theta/d x3 = -|e| n1 / |n1|^2
+    d theta/d x1 = t2 |e| n0 / (|e| |n0|^2) + t3 |e| n1 / (|e| |n1|^2),   t_k = (x_k - x0) . e / |e|
+    d theta/d x0 = -(the other three)
+
+The energy ``k (theta - theta0)^2 / 2`` gives ``f_m = -(k (theta - theta0) + kd dtheta/dt) d theta/d x_m``,
+with ``dtheta/dt = sum_m d theta/d x_m . v_m`` and ``v = (x - x-) / dt`` (the step's backward difference). The
+four forces sum to zero and exert no torque. :mod:`vfit_engine.sim.bending` gives ``k`` from a bending
+rigidity; :func:`eval_hinge_forces` is the callers' entry, the cloth kernel inlines
+:func:`_add_hinge_forces` over its segments.
+"""
+import math
+
+import numpy as np
+
+from vfit_engine._jit import njit
+
+
+@njit
+def _add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, h0, h1):
+    """Add the forces of hinges ``h0 .. h1 - 1`` (module docstring) into ``f_out`` (n, 3), N."""
+    for h in range(h0, h1):
+        i0, i1, i2, i3 = hi[h, 0], hi[h, 1], hi[h, 2], hi[h, 3]
+        ex, ey, ez = x[i1, 0] - x[i0, 0], x[i1, 1] - x[i0, 1], x[i1, 2] - x[i0, 2]
+        le = math.sqrt(ex * ex + ey * ey + ez * ez)
+        ax, ay, az = x[i2, 0] - x[i0, 0], x[i2, 1] - x[i0, 1], x[i2, 2] - x[i0, 2]
+        bx, by, bz = x[i3, 0] - x[i0, 0], x[i3, 1] - x[i0, 1], x[i3, 2] - x[i0, 2]
+        # n0 = e x a, n1 = b x e
+        n0x, n0y, n0z = ey * az - ez * ay, ez * ax - ex * az, ex * ay - ey * ax
+        n1x, n1y, n1z = by * ez - bz * ey, bz * ex - bx * ez, bx * ey - by * ex
+        q0 = n0x * n0x + n0y * n0y + n0z * n0z
+        q1 = n1x * n1x + n1y * n1y + n1z * n1z
+        if le <= 0.0 or q0 <= 0.0 or q1 <= 0.0:
+            continue  # a collapsed triangle has no normal: no bending force this step
+        cx, cy, cz = n0y * n1z - n0z * n1y, n0z * n1x - n0x * n1z, n0x * n1y - n0y * n1x
+        theta = math.atan2((cx * ex + cy * ey + cz * ez) / le, n0x * n1x + n0y * n1y + n0z * n1z)
+        d = theta - hrest[h]
+        if d > math.pi:
+            d -= 2.0 * math.pi
+        elif d < -math.pi:
+            d += 2.0 * math.pi
+        s0, s1 = le / q0, le / q1
+        t2 = (ax * ex + ay * ey + az * ez) / (le * le)
+        t3 = (bx * ex + by * ey + bz * ez) / (le * le)
+        # the gradient: g2 = -s0 n0, g3 = -s1 n1, g1 = -t2 g2 - t3 g3, g0 = -(g1 + g2 + g3)
+        g2x, g2y, g2z = -s0 * n0x, -s0 * n0y, -s0 * n0z
+        g3x, g3y, g3z = -s1 * n1x, -s1 * n1y, -s1 * n1z
+        g1x, g1y, g1z = -t2 * g2x - t3 * g3x, -t2 * g2y - t3 * g3y, -t2 * g2z - t3 * g3z
+        g0x, g0y, g0z = -(g1x + g2x + g3x), -(g1y + g2y + g3y), -(g1z + g2z + g3z)
+        mag = hk[h] * d
+        if hkd[h] != 0.0:
+            rate = (g0x * (x[i0, 0] - xp[i0, 0]) + g0y * (x[i0, 1] - xp[i0, 1]) + g0z * (x[i0, 2] - xp[i0, 2])
+                    + g1x * (x[i1, 0] - xp[i1, 0]) + g1y * (x[i1, 1] - xp[i1, 1]) + g1z * (x[i1, 2] - xp[i1, 2])
+                    + g2x * (x[i2, 0] - xp[i2, 0]) + g2y * (x[i2, 1] - xp[i2, 1]) + g2z * (x[i2, 2] - xp[i2, 2])
+                    + g3x * (x[i3, 0] - xp[i3, 0]) + g3y * (x[i3, 1] - xp[i3, 1]) + g3z * (x[i3, 2] - xp[i3, 2]))
+            mag += hkd[h] * rate * inv_dt
+        f_out[i0, 0] -= mag * g0x
+        f_out[i0, 1] -= mag * g0y
+        f_out[i0, 2] -= mag * g0z
+        f_out[i1, 0] -= mag * g1x
+        f_out[i1, 1] -= mag * g1y
+        f_out[i1, 2] -= mag * g1z
+        f_out[i2, 0] -= mag * g2x
+        f_out[i2, 1] -= mag * g2y
+        f_out[i2, 2] -= mag * g2z
+        f_out[i3, 0] -= mag * g3x
+        f_out[i3, 1] -= mag * g3y
+        f_out[i3, 2] -= mag * g3z
+
+
+@njit
+def _hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out):
+    f_out[:] = 0.0
+    _add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, 0, hi.shape[0])
+
+
+def eval_hinge_forces(pos, pos_prev, dt, hinge_indices, k, kd, rest_angle):
+    """Bending forces of hinges on every particle.
+
+    Parameters
+    ----------
+    pos, pos_prev : (n, 3) float64, m
+    dt : float, s
+    hinge_indices : (h, 4) int64
+        Edge ends, then the vertex opposite the edge in each triangle (module docstring).
+    k : (h,) float64, N m / rad^2
+    kd : (h,) float64, N m s / rad^2
+    rest_angle : (h,) float64, rad
+
+    Returns
+    -------
+    (n, 3) float64, N
+    """
+    x = np.ascontiguousarray(pos, dtype=np.float64)
+    out = np.zeros_like(x)
+    _hinge_forces(x, np.ascontiguousarray(pos_prev, dtype=np.float64), 1.0 / float(dt),
+                  np.ascontiguousarray(hinge_indices, dtype=np.int64).reshape(-1, 4),
+                  np.ascontiguousarray(k, dtype=np.float64), np.ascontiguousarray(kd, dtype=np.float64),
+                  np.ascontiguousarray(rest_angle, dtype=np.float64), out)
+    return out
