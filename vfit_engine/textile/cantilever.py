@@ -60,26 +60,18 @@ def droop(material, overhang, edge, max_time=20.0, still=2e-4):
         material's everywhere).
     """
     from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
+    from vfit_engine.textile.settle import fall_still
 
     model, h = _strip_model(material, overhang, edge)
     # damping near critical for the strip's first mode (omega ~ 3.5 sqrt(g / l) at the test's droop)
     settings = VerletSettings(air_damping=2.0 * 3.5 * math.sqrt(9.81 / overhang), shear_limit_deg=None,
                               bend_limit=None)
     solver = SolverVerlet(model, settings)
-    dt = min(solver.max_stable_dt(), 1e-3)
-    state = solver.init_state(dt)
-    chunk = max(1, int(round(0.02 / dt)))
-    quiet, t = 0, 0.0
-    while t < max_time:
-        solver.step_frame(state, chunk * dt, chunk)
-        t += chunk * dt
-        quiet = quiet + 1 if solver.max_speed(state) < still else 0
-        if quiet >= 5:
-            break
+    state, dt, t, settled = fall_still(solver, 1e-3, max_time, still, calm=5)
     tip = state.pos[np.isclose(model.rest_pos[:, 0], model.rest_pos[:, 0].max())]
     x, y = tip[:, 0].mean() + 0.5 * h, tip[:, 1].mean()
     info = dict(spacing_m=h, dt_s=dt, sim_time_s=t, vertices=model.particle_count,
-                softened_hinges=solver.softened_hinges, settled=quiet >= 5)
+                softened_hinges=solver.softened_hinges, settled=settled)
     return math.degrees(math.atan2(-y, x)), info
 
 

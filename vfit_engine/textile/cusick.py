@@ -125,23 +125,15 @@ def drape_test(material, edge=0.01, seed=0, max_time=8.0, still=5e-4, air_dampin
         covering both.
     """
     from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
+    from vfit_engine.textile.settle import fall_still
 
     t0 = time.perf_counter()
     model, tris, flat, sd = specimen_model(material, edge, seed)
     solver = SolverVerlet(model, settings or VerletSettings(air_damping=air_damping))
-    dt = min(solver.max_stable_dt(), 1.0 / 240.0)
-    state = solver.init_state(dt)
-    chunk = max(1, int(round(0.02 / dt)))
-    quiet, t = 0, 0.0
-    while t < max_time:
-        solver.step_frame(state, chunk * dt, chunk)
-        t += chunk * dt
-        quiet = quiet + 1 if t > 0.5 and solver.max_speed(state) < still else 0
-        if quiet >= 10:
-            break
+    state, dt, t, settled = fall_still(solver, 1.0 / 240.0, max_time, still, calm=10, after=0.5)
     pos = np.r_[state.pos, [[0.0, 0.0, 0.0]]]  # the support's centre: the fan of tris covering it
     s = shadow_area(pos, tris)
     return dict(drape_coefficient=(s - sd) / (flat - sd), nodes=count_nodes(outline(pos)), shadow_m2=s,
                 specimen_m2=flat, support_m2=sd, edge_m=edge, vertices=model.particle_count, dt_s=dt, sim_time_s=t,
-                settled=quiet >= 10, softened_hinges=solver.softened_hinges, time_s=time.perf_counter() - t0,
+                settled=settled, softened_hinges=solver.softened_hinges, time_s=time.perf_counter() - t0,
                 pos=pos.copy(), tris=tris)

@@ -1,0 +1,30 @@
+"""A specimen let go from flat until it is still: the fabric tests' one way of running the solver."""
+from __future__ import annotations
+
+#: Simulated time between stillness checks, s.
+CHUNK = 0.02
+
+
+def fall_still(solver, max_dt, max_time, still, calm, after=0.0):
+    """Run ``solver``'s model from rest at its rest shape until every vertex has been slower than ``still``
+    (m/s) for ``calm`` checks in a row (one every :data:`CHUNK` s, none before ``after`` s), or ``max_time`` s.
+
+    The step is the largest at which no hinge is softened (:meth:`SolverVerlet.max_stable_dt`), at most
+    ``max_dt``: the bending is the material's everywhere.
+
+    Returns
+    -------
+    state : State
+    dt : float, s
+    sim_time : float, s
+    settled : bool
+    """
+    dt = min(solver.max_stable_dt(), max_dt)
+    state = solver.init_state(dt)
+    chunk = max(1, int(round(CHUNK / dt)))
+    quiet, t = 0, 0.0
+    while t < max_time and quiet < calm:
+        solver.step_frame(state, chunk * dt, chunk)
+        t += chunk * dt
+        quiet = quiet + 1 if t > after and solver.max_speed(state) < still else 0
+    return state, dt, t, quiet >= calm
