@@ -227,8 +227,8 @@ PRESETS = {m.name: m for m in (
     material_from_dict({"name": "wool", "areal_density_g_m2": 250, "bending_rigidity_uN_m": [13.0, 10.0],
                         "stretch_stiffness_N_m": 2500, "shear_stiffness_N_m": 50, "wearable_stretch": 0.10,
                         "friction": 0.4}),
-    # denim, 400 g/m^2 (12 oz/yd^2), B 0.45 gf cm^2/cm; c 2.4 cm
-    material_from_dict({"name": "denim", "areal_density_g_m2": 400, "bending_rigidity_uN_m": [50.0, 35.0],
+    # denim, 400 g/m^2 (12 oz/yd^2), B 0.82 / 0.56 gf cm^2/cm; c 2.6 cm
+    material_from_dict({"name": "denim", "areal_density_g_m2": 400, "bending_rigidity_uN_m": [80.0, 55.0],
                         "stretch_stiffness_N_m": 8000, "shear_stiffness_N_m": 200, "wearable_stretch": 0.05,
                         "friction": 0.5}),
     # cotton single jersey, 180 g/m^2, B 0.04 gf cm^2/cm; c 1.3 cm; stretches
@@ -245,13 +245,15 @@ SOURCES = {
             "~1 uN m, silks 1-3 (KES-F, FABRICS.md); Cusick 20-40 % (FABRICS.md)",
     "cotton": "weight: plain-weave cotton shirting 100-150 g/m^2 (Penava, Simic Penava & Knezic 2014, "
               "150 g/m^2); B: woven shirting 0.05-0.1 gf cm^2/cm = 5-10 uN m (KES-F, FABRICS.md), warp stiffer "
-              "than weft; Cusick 60-76 % (Gan, Ly & Steven 1991, doi:10.1080/00405009108658741); friction on "
-              "skin 0.25-0.31 dry forearm, 0.8-0.9 chest (Temel, Johnson & Lloyd 2022, Tribology Letters 70)",
+              "than weft; Cusick 60-76 % (Gan, Ly & Steven 1991, doi:10.1080/00405009108658741; this model, "
+              "elastic, drapes these figures at DC 0.44: BENCHMARKS.md); friction on skin 0.25-0.31 dry forearm, "
+              "0.8-0.9 chest (Temel, Johnson & Lloyd 2022, Tribology Letters 70)",
     "wool": "weight: wool plain weave 235 g/m^2 (Penava et al. 2014); B: suiting 0.1-0.15 gf cm^2/cm "
             "(KES-F men's suiting; FABRICS.md range); Cusick 40-70 % (FABRICS.md)",
     "denim": "weight: 11 oz denim 324 g/m^2 measured (Wang, O'Brien & Ramamoorthi 2011, doi:10.1145/2010324."
-             "1964966), 12 oz = 407 g/m^2; B: light denims 14-22 uN m (Kumari & Khurana 2016, doi:10.1155/2016/"
-             "4614168), heavy denim tens of uN m (FABRICS.md); Cusick 70-90 % (FABRICS.md)",
+             "1964966), 12 oz = 407 g/m^2; B: light denims 14-22 uN m, with bending hysteresis 2HB 0.10-0.21 gf "
+             "cm/cm (Kumari & Khurana 2016, doi:10.1155/2016/4614168), heavy denim tens of uN m (FABRICS.md): "
+             "the preset (80 / 55 uN m, c 2.6 cm) is a rigid 12 oz; Cusick 70-90 % (FABRICS.md)",
     "jersey": "weight: a cotton interlock 187 g/m^2 measured (Wang et al. 2011); stretch: knits 20 % and more at "
               "wearing loads (FABRICS.md); B estimated (knits bend more easily than shirting)",
 }
