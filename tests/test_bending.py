@@ -128,7 +128,10 @@ def test_the_solver_step_holds_the_hinges_stiffness():
     model = Model.from_polygons(fv, fo, pos, "denim")
     solver = SolverVerlet(model)
     dt = solver.max_stable_dt()
-    solver.effective_constants(dt)
-    assert solver.softened_hinges == 0.0
-    solver.effective_constants(4 * dt)
+    _, _, hk, _ = solver.effective_constants(dt)
+    assert solver.softened_hinges == 0.0 and solver.bending_kept == 1.0
+    np.testing.assert_array_equal(hk, model.hinges.k)
+    _, _, hk, _ = solver.effective_constants(4 * dt)
     assert solver.softened_hinges > 0.0
+    # the share of the material's bending the step carries, as the report gives it
+    assert solver.bending_kept == pytest.approx(hk.sum() / model.hinges.k.sum()) and solver.bending_kept < 1.0

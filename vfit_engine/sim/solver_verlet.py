@@ -142,6 +142,8 @@ class SolverVerlet:
         self.contact_queries = 0
         self.softened_fraction = 0.0
         self.softened_hinges = 0.0
+        #: the share of the material's bending stiffness (summed over the hinges) the step carries unsoftened
+        self.bending_kept = 1.0
         self._hinge_g = None
         n = model.particle_count
         self._inv_mass = np.ascontiguousarray(model.inv_mass, dtype=np.float64).copy()
@@ -357,6 +359,7 @@ class SolverVerlet:
                                     np.bincount(flat, (hkd[:, None] * row).ravel(), n), dt, safety)
                 h_scale = h_v[hinges.indices].min(axis=1)
                 self.softened_hinges = float(np.mean(h_scale < 1.0))
+                self.bending_kept = float(np.sum(hk * h_scale) / max(np.sum(hk), 1e-300))
                 hk *= h_scale
                 hkd *= h_scale
         return k, kd, hk, hkd
