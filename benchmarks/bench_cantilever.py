@@ -16,25 +16,19 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # _fabric_args, also when loaded by path (tests)
 
 
 def main(argv=None):
-    from vfit_engine.errors import InputError
-    from vfit_engine.sim.materials import resolve_material
+    from _fabric_args import parse_fabric_args
+
     from vfit_engine.textile.cantilever import bending_length
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--material", default="cotton", help="a preset name or a material JSON file")
-    ap.add_argument("--edge", type=float, default=5.0, help="mesh spacing, mm (default 5)")
-    ap.add_argument("--json", action="store_true", help="end with one line of JSON")
-    args = ap.parse_args(argv)
-    try:
-        material = resolve_material(args.material)
-        if not 0.5 <= args.edge <= 25.0:
-            raise InputError(f"--edge {args.edge:g} mm: use 0.5-25 mm (the strip is 25 mm wide)")
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    parsed = parse_fabric_args(ap, argv, 5.0, (0.5, 25.0), "the strip is 25 mm wide")
+    if parsed is None:
         return 2
+    args, material = parsed
     r = bending_length(material, args.edge / 1000.0)
     for t in r["tries"]:
         print(f"overhang {100 * t['overhang_m']:6.2f} cm -> tip {t['angle_deg']:5.2f} deg below the edge")

@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # _fabric_args, also when loaded by path (tests)
 
 
 def draw(path, r, title):
@@ -45,24 +46,17 @@ def draw(path, r, title):
 
 
 def main(argv=None):
-    from vfit_engine.errors import InputError
-    from vfit_engine.sim.materials import resolve_material
+    from _fabric_args import parse_fabric_args
+
     from vfit_engine.textile.cusick import drape_test
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--material", default="cotton", help="a preset name or a material JSON file")
-    ap.add_argument("--edge", type=float, default=10.0, help="mesh spacing, mm (default 10; 5 takes ~10x longer)")
     ap.add_argument("--seed", type=int, default=0, help="the specimen mesh's jitter (default 0)")
     ap.add_argument("--png", help="draw the drape seen from above into this file")
-    ap.add_argument("--json", action="store_true", help="end with one line of JSON")
-    args = ap.parse_args(argv)
-    try:
-        material = resolve_material(args.material)
-        if not 2.0 <= args.edge <= 30.0:
-            raise InputError(f"--edge {args.edge:g} mm: use 2-30 mm (the specimen is 300 mm across)")
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    parsed = parse_fabric_args(ap, argv, 10.0, (2.0, 30.0), "the specimen is 300 mm across")
+    if parsed is None:
         return 2
+    args, material = parsed
     r = drape_test(material, args.edge / 1000.0, seed=args.seed)
     title = (f"{material.name}: DC {100 * r['drape_coefficient']:.0f} %, {r['nodes']} nodes "
              f"(c {100 * material.bending_length:.2f} cm, {args.edge:g} mm)")

@@ -82,8 +82,6 @@ def test_grid_structural_spring_constant_equals_modulus():
         np.testing.assert_allclose(k[s.type == SHEAR], 10.0 / 4)
 
 
-# -- materials -----------------------------------------------------------------------
-
 # -- solver ----------------------------------------------------------------------------
 
 def _free_particles(n=5, seed=0):
