@@ -45,6 +45,32 @@ def hinge_forces(x, xp, dt, idx, k, kd, rest, eps=1e-7):
     return f
 
 
+def hinge_sweep(x, w, idx, compliance, rest, lam, at_scale, visit=None, eps=1e-7):
+    """One Gauss-Seidel sweep of hinges as compliant angle constraints (XPBD): hinge by hinge, C = theta -
+    theta0 and its gradient by central differences of the angle; compliance 0 skips a hinge. Returns
+    (x, lam) (copies)."""
+    from vfit_engine.sim.bending import hinge_angles
+
+    x, lam = x.copy(), lam.copy()
+    for h in range(idx.shape[0]) if visit is None else visit:
+        if compliance[h] <= 0:
+            continue
+        ids, one = idx[h], idx[h:h + 1]
+        grad = np.zeros((4, 3))
+        for m in range(4):
+            for c in range(3):
+                a, b = x.copy(), x.copy()
+                a[ids[m], c] += eps
+                b[ids[m], c] -= eps
+                grad[m, c] = (hinge_angles(one, a)[0] - hinge_angles(one, b)[0]) / (2 * eps)
+        d = (hinge_angles(one, x)[0] - rest[h] + np.pi) % (2 * np.pi) - np.pi
+        at = compliance[h] * at_scale
+        dlam = (-d - at * lam[h]) / (np.sum(w[ids] * np.sum(grad ** 2, axis=1)) + at)
+        lam[h] += dlam
+        x[ids] += w[ids, None] * grad * dlam
+    return x, lam
+
+
 def integrate(x, xp, inv_mass, f, gravity, dt, c):
     """x+ = x + (1 - c)(x - x-) + (w f + g) dt^2 for free particles; pinned keep x."""
     a = inv_mass[:, None] * f + np.asarray(gravity)[None, :]
@@ -286,7 +312,8 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     """One substep of the cloth kernel against sphere colliders, fresh contact memory (copies).
 
     ``cl``: dict with ``inv_mass gravity sp_i sp_j sp_rest sp_k sp_kd`` (and optionally the hinges' ``h_i h_k h_kd
-    h_rest``) and the constraint arrays of
+    h_rest``, with ``h_alpha h_seg`` those solved as constraints, :func:`hinge_sweep`, first in each segment's
+    sweep) and the constraint arrays of
     :func:`distance_sweep`; ``pins``: (idx, from, to) with the pins at ``alpha_pins`` of the way;
     ``pts``: (verts, bary, skin, spheres). Steps (the kernel's module docstring): explicit springs and
     gravity, Verlet with air damping; pins; contact half-spaces; ``iterations`` x {constraint sweep,
@@ -295,6 +322,8 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     sweep visits segment 0's constraints then its contacts, then segment 1's, then segment 2's (the
     kernel's "Two threads"); None: one segment. Returns (x, xp).
     """
+    from vfit_engine.kernels.cloth import HINGE_EVERY  # the sweeps that solve the hinges: a schedule, not a method
+
     w = cl["inv_mass"]
     idx = np.stack([cl["sp_i"], cl["sp_j"]], axis=1)
     f = spring_forces(x, xp, dt, idx, cl["sp_rest"], cl["sp_k"], cl["sp_kd"])
@@ -309,11 +338,15 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     n_c, n_p = len(cl["i"]), len(v)
     c_seg, p_seg = segments if segments is not None else ([0, n_c, n_c, n_c], [0, n_p, n_p, n_p])
     lam = np.zeros(len(cl["i"]))
+    h_lam = np.zeros(len(cl.get("h_alpha", ())))
     push = np.zeros_like(x_new)
     active, live = {}, {}
     for it in range(iterations):
         every = it == 0 or it == iterations - 1
         for g in range(3):
+            if h_lam.size and (it % HINGE_EVERY == 0 or it == iterations - 1):
+                x_new, h_lam = hinge_sweep(x_new, w, cl["h_i"], cl["h_alpha"], cl["h_rest"], h_lam, 1.0 / dt ** 2,
+                                           range(cl["h_seg"][g], cl["h_seg"][g + 1]))
             visit = range(c_seg[g], c_seg[g + 1]) if every else active[g]
             x_new, lam, found = distance_sweep(x_new, w, cl, lam, 1.0 / dt ** 2, visit)
             if it == 0:

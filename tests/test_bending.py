@@ -1,33 +1,15 @@
-"""Bending hinges: the kernel against a NumPy reference, the energy of a bent sheet against B kappa^2 / 2,
-the moment of a bent strip against B kappa, and the step the solver takes with them."""
+"""Bending hinges: the kernels (forces, constraints) against NumPy references, the energy of a bent sheet
+against B kappa^2 / 2, the moment of a bent strip against B kappa, and the step the solver takes with them."""
 import math
 
+import naive_sim
 import numpy as np
 import pytest
 
 from vfit_engine.garment.springs import grid_polygons
-from vfit_engine.kernels.bending import eval_hinge_forces
+from vfit_engine.kernels.bending import eval_hinge_forces, project_hinges
 from vfit_engine.sim.bending import bending_energy, build_hinges, hinge_angles
 from vfit_engine.textile.specimen import disc
-
-
-def _reference_forces(pos, vel, idx, k, kd, rest):
-    """Slow reference: the energy's gradient by central differences of hinge_angles, hinge by hinge."""
-    f = np.zeros_like(pos)
-    eps = 1e-7
-    for h in range(idx.shape[0]):
-        ids = idx[h]
-        grad = np.zeros((4, 3))
-        for m in range(4):
-            for c in range(3):
-                p, q = pos.copy(), pos.copy()
-                p[ids[m], c] += eps
-                q[ids[m], c] -= eps
-                grad[m, c] = (hinge_angles(idx[h:h + 1], p)[0] - hinge_angles(idx[h:h + 1], q)[0]) / (2 * eps)
-        d = hinge_angles(idx[h:h + 1], pos)[0] - rest[h]
-        rate = np.sum(grad * vel[ids])
-        f[ids] -= (k[h] * d + kd[h] * rate) * grad
-    return f
 
 
 def _cylinder(pos, kappa, phi):
@@ -49,11 +31,45 @@ def test_kernel_matches_the_reference_on_random_hinges():
     rest = rng.uniform(-0.5, 0.5, h.count)
     k, kd = rng.uniform(1e-6, 1e-5, h.count), rng.uniform(0, 1e-7, h.count)
     got = eval_hinge_forces(x, xp, dt, h.indices, k, kd, rest)
-    want = _reference_forces(x, (x - xp) / dt, h.indices, k, kd, rest)
+    want = naive_sim.hinge_forces(x, xp, dt, h.indices, k, kd, rest)
     np.testing.assert_allclose(got, want, atol=1e-9 * np.abs(want).max(), rtol=1e-5)
     # internal forces: no net force, no net torque
     np.testing.assert_allclose(got.sum(axis=0), 0.0, atol=1e-12)
     np.testing.assert_allclose(np.cross(x, got).sum(axis=0), 0.0, atol=1e-12)
+
+
+def test_constraint_kernel_matches_the_reference_on_random_hinges():
+    rng = np.random.default_rng(11)
+    pos, fv, fo = grid_polygons(5, 4, 0.04, 0.03, quads=False)
+    h = build_hinges(fv, fo, pos, 5e-6)
+    x = np.ascontiguousarray(pos + rng.normal(0, 2e-3, pos.shape))
+    w = rng.uniform(50, 200, pos.shape[0])
+    rest = rng.uniform(-0.5, 0.5, h.count)
+    compliance = np.where(rng.random(h.count) < 0.8, 1.0 / rng.uniform(1e-6, 1e-4, h.count), 0.0)
+    lam0 = rng.normal(0, 1e-8, h.count)
+    want, want_lam = naive_sim.hinge_sweep(x, w, h.indices, compliance, rest, lam0, 1.0 / 2e-3 ** 2)
+    lam = lam0.copy()
+    project_hinges(x, w, h.indices, compliance, rest, lam, 2e-3)
+    np.testing.assert_allclose(x, want, atol=1e-9)
+    np.testing.assert_allclose(lam, want_lam, rtol=1e-5, atol=1e-15)
+    assert np.all(lam[compliance == 0] == lam0[compliance == 0]) and np.any(lam != lam0)
+
+
+def test_stiff_hinges_as_constraints_keep_the_fabric_s_bending_beyond_the_explicit_step():
+    # the cantilever at 4x the largest explicit step: solved as constraints the hinges droop the strip as the
+    # explicit step does; softened to the step's bound (the earlier solver) it hangs nearly straight down
+    from vfit_engine.sim.materials import PRESETS
+    from vfit_engine.textile.cantilever import droop, peirce_overhang
+
+    silk = PRESETS["silk"]
+    overhang = peirce_overhang(silk.bending_length)
+    explicit, info = droop(silk, overhang, 0.005)
+    assert info["implicit_hinges"] == 0.0 and info["softened_hinges"] == 0.0
+    implicit, info4 = droop(silk, overhang, 0.005, dt=4 * info["dt_s"])
+    assert info4["implicit_hinges"] > 0.5 and info4["softened_hinges"] == 0.0 and info4["settled"]
+    assert implicit == pytest.approx(explicit, abs=1.0)
+    softened, info_s = droop(silk, overhang, 0.005, dt=4 * info["dt_s"], implicit_hinges=False)
+    assert info_s["softened_hinges"] > 0.5 and softened > explicit + 30.0
 
 
 @pytest.mark.parametrize("mesh", ["disc", "quads"])
@@ -122,16 +138,30 @@ def test_a_garment_s_own_folds_are_its_rest_and_slivers_carry_no_hinge():
 
 def test_the_solver_step_holds_the_hinges_stiffness():
     from vfit_engine.sim.model import Model
+    from vfit_engine.sim.solver_settings import VerletSettings
     from vfit_engine.sim.solver_verlet import SolverVerlet
 
     pos, fv, fo = disc(0.05, 0.005)
     model = Model.from_polygons(fv, fo, pos, "denim")
     solver = SolverVerlet(model)
     dt = solver.max_stable_dt()
-    _, _, hk, _ = solver.effective_constants(dt)
-    assert solver.softened_hinges == 0.0 and solver.bending_kept == 1.0
+    _, _, hk, _, alpha = solver.effective_constants(dt)
+    assert solver.stiff_hinges == 0.0 and solver.bending_kept == 1.0 and not alpha.any()
     np.testing.assert_array_equal(hk, model.hinges.k)
-    _, _, hk, _ = solver.effective_constants(4 * dt)
-    assert solver.softened_hinges > 0.0
-    # the share of the material's bending the step carries, as the report gives it
-    assert solver.bending_kept == pytest.approx(hk.sum() / model.hinges.k.sum()) and solver.bending_kept < 1.0
+    # beyond the explicit bound the stiff hinges become constraints with the material's stiffness
+    _, _, hk, _, alpha = solver.effective_constants(4 * dt)
+    stiff = alpha > 0
+    assert solver.implicit_hinges == solver.stiff_hinges == pytest.approx(stiff.mean()) and stiff.any()
+    np.testing.assert_allclose(1.0 / alpha[stiff], model.hinges.k[stiff])
+    assert not hk[stiff].any() and solver.softened_hinges == 0.0 and solver.bending_kept == 1.0
+    # round an opening the body forces wider they stay explicit, softened; the report's share says so
+    solver.allow_stretch(np.arange(model.particle_count // 2), 0.1)
+    _, _, hk, _, alpha = solver.effective_constants(4 * dt)
+    assert 0.0 < solver.softened_hinges < solver.stiff_hinges and solver.bending_kept < 1.0
+    kept = np.where(alpha > 0, model.hinges.k, hk)
+    assert solver.bending_kept == pytest.approx(kept.sum() / model.hinges.k.sum())
+    # without implicit hinges every stiff hinge is softened (the earlier solver)
+    soft = SolverVerlet(model, VerletSettings(implicit_hinges=False))
+    _, _, hk, _, alpha = soft.effective_constants(4 * dt)
+    assert not alpha.any() and soft.softened_hinges == soft.stiff_hinges > 0.0
+    assert soft.bending_kept == pytest.approx(hk.sum() / model.hinges.k.sum()) and soft.bending_kept < 1.0

@@ -66,9 +66,10 @@ class DrapeResult:
         :func:`vfit_engine.drape.metrics.drape_metrics`.
     info : dict
         Solver figures: ``untangle``, ``contact_points``, ``contact_queries``, ``softened_fraction``,
-        ``softened_hinges`` (the share of hinges softened to the step's stability bound) and ``bending_kept``
-        (the share of the material's bending stiffness the step carries: below 1 the cloth bends more easily
-        than the fabric where its mesh is fine).
+        ``implicit_hinges`` (the share of hinges too stiff for the explicit step, solved as constraints),
+        ``softened_hinges`` (the share softened to the step's stability bound: round openings the body forces
+        wider) and ``bending_kept`` (the share of the material's bending stiffness the drape carries: below 1
+        the cloth bends more easily than the fabric there).
     """
 
     pos: np.ndarray
@@ -237,7 +238,8 @@ def run_drape(setup, settings=None, on_frame=None):
     wall = time.perf_counter() - t0
     pos = state.pos.copy()
     info = dict(untangle=untangle_info, contact_points=solver.points.count, contact_queries=int(solver.contact_queries),
-                softened_fraction=solver.softened_fraction, softened_hinges=round(solver.softened_hinges, 4),
+                softened_fraction=solver.softened_fraction, implicit_hinges=round(solver.implicit_hinges, 4),
+                softened_hinges=round(solver.softened_hinges, 4),
                 bending_kept=round(solver.bending_kept, 4), constraints=int(solver.constraint_count))
     return DrapeResult(pos, converged, frame, int(state.step_count), float(state.time), wall, setup_time,
                        settle.figures(), drape_metrics(setup, pos), info)

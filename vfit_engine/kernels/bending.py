@@ -16,7 +16,9 @@ The energy ``k (theta - theta0)^2 / 2`` gives ``f_m = -(k (theta - theta0) + kd 
 with ``dtheta/dt = sum_m d theta/d x_m . v_m`` and ``v = (x - x-) / dt`` (the step's backward difference). The
 four forces sum to zero and exert no torque. :mod:`vfit_engine.sim.bending` gives ``k`` from a bending
 rigidity; :func:`eval_hinge_forces` is the callers' entry, the cloth kernel inlines
-:func:`_add_hinge_forces` over its segments.
+:func:`_add_hinge_forces` over its segments. A hinge too stiff for the explicit step is solved instead as
+a compliant constraint on ``theta`` with the same gradient (:func:`_project_hinges`, the cloth kernel's
+sweeps; :func:`project_hinges` is the callers' entry).
 """
 import math
 
@@ -25,37 +27,53 @@ import numpy as np
 from vfit_engine._jit import njit
 
 
+@njit(inline="always")
+def _bend(x, i0, i1, i2, i3, rest):
+    """The hinge's bend away from ``rest`` (rad, in (-pi, pi]) and its gradient (module docstring) as
+    ``(ok, d, g0x, g0y, g0z, ..., g3z)``; ``ok`` False for a collapsed triangle (no normal, no bend)."""
+    ex, ey, ez = x[i1, 0] - x[i0, 0], x[i1, 1] - x[i0, 1], x[i1, 2] - x[i0, 2]
+    le = math.sqrt(ex * ex + ey * ey + ez * ez)
+    ax, ay, az = x[i2, 0] - x[i0, 0], x[i2, 1] - x[i0, 1], x[i2, 2] - x[i0, 2]
+    bx, by, bz = x[i3, 0] - x[i0, 0], x[i3, 1] - x[i0, 1], x[i3, 2] - x[i0, 2]
+    # n0 = e x a, n1 = b x e
+    n0x, n0y, n0z = ey * az - ez * ay, ez * ax - ex * az, ex * ay - ey * ax
+    n1x, n1y, n1z = by * ez - bz * ey, bz * ex - bx * ez, bx * ey - by * ex
+    q0 = n0x * n0x + n0y * n0y + n0z * n0z
+    q1 = n1x * n1x + n1y * n1y + n1z * n1z
+    if le <= 0.0 or q0 <= 0.0 or q1 <= 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    cx, cy, cz = n0y * n1z - n0z * n1y, n0z * n1x - n0x * n1z, n0x * n1y - n0y * n1x
+    d = math.atan2((cx * ex + cy * ey + cz * ez) / le, n0x * n1x + n0y * n1y + n0z * n1z) - rest
+    if d > math.pi:
+        d -= 2.0 * math.pi
+    elif d < -math.pi:
+        d += 2.0 * math.pi
+    s0, s1 = le / q0, le / q1
+    t2 = (ax * ex + ay * ey + az * ez) / (le * le)
+    t3 = (bx * ex + by * ey + bz * ez) / (le * le)
+    # the gradient: g2 = -s0 n0, g3 = -s1 n1, g1 = -t2 g2 - t3 g3, g0 = -(g1 + g2 + g3)
+    g2x, g2y, g2z = -s0 * n0x, -s0 * n0y, -s0 * n0z
+    g3x, g3y, g3z = -s1 * n1x, -s1 * n1y, -s1 * n1z
+    g1x, g1y, g1z = -t2 * g2x - t3 * g3x, -t2 * g2y - t3 * g3y, -t2 * g2z - t3 * g3z
+    g0x, g0y, g0z = -(g1x + g2x + g3x), -(g1y + g2y + g3y), -(g1z + g2z + g3z)
+    return True, d, g0x, g0y, g0z, g1x, g1y, g1z, g2x, g2y, g2z, g3x, g3y, g3z
+
+
+@njit(inline="always")
+def _add(a, i, c, gx, gy, gz):
+    a[i, 0] += c * gx
+    a[i, 1] += c * gy
+    a[i, 2] += c * gz
+
+
 @njit
 def _add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, h0, h1):
     """Add the forces of hinges ``h0 .. h1 - 1`` (module docstring) into ``f_out`` (n, 3), N."""
     for h in range(h0, h1):
         i0, i1, i2, i3 = hi[h, 0], hi[h, 1], hi[h, 2], hi[h, 3]
-        ex, ey, ez = x[i1, 0] - x[i0, 0], x[i1, 1] - x[i0, 1], x[i1, 2] - x[i0, 2]
-        le = math.sqrt(ex * ex + ey * ey + ez * ez)
-        ax, ay, az = x[i2, 0] - x[i0, 0], x[i2, 1] - x[i0, 1], x[i2, 2] - x[i0, 2]
-        bx, by, bz = x[i3, 0] - x[i0, 0], x[i3, 1] - x[i0, 1], x[i3, 2] - x[i0, 2]
-        # n0 = e x a, n1 = b x e
-        n0x, n0y, n0z = ey * az - ez * ay, ez * ax - ex * az, ex * ay - ey * ax
-        n1x, n1y, n1z = by * ez - bz * ey, bz * ex - bx * ez, bx * ey - by * ex
-        q0 = n0x * n0x + n0y * n0y + n0z * n0z
-        q1 = n1x * n1x + n1y * n1y + n1z * n1z
-        if le <= 0.0 or q0 <= 0.0 or q1 <= 0.0:
+        ok, d, g0x, g0y, g0z, g1x, g1y, g1z, g2x, g2y, g2z, g3x, g3y, g3z = _bend(x, i0, i1, i2, i3, hrest[h])
+        if not ok:
             continue  # a collapsed triangle has no normal: no bending force this step
-        cx, cy, cz = n0y * n1z - n0z * n1y, n0z * n1x - n0x * n1z, n0x * n1y - n0y * n1x
-        theta = math.atan2((cx * ex + cy * ey + cz * ez) / le, n0x * n1x + n0y * n1y + n0z * n1z)
-        d = theta - hrest[h]
-        if d > math.pi:
-            d -= 2.0 * math.pi
-        elif d < -math.pi:
-            d += 2.0 * math.pi
-        s0, s1 = le / q0, le / q1
-        t2 = (ax * ex + ay * ey + az * ez) / (le * le)
-        t3 = (bx * ex + by * ey + bz * ez) / (le * le)
-        # the gradient: g2 = -s0 n0, g3 = -s1 n1, g1 = -t2 g2 - t3 g3, g0 = -(g1 + g2 + g3)
-        g2x, g2y, g2z = -s0 * n0x, -s0 * n0y, -s0 * n0z
-        g3x, g3y, g3z = -s1 * n1x, -s1 * n1y, -s1 * n1z
-        g1x, g1y, g1z = -t2 * g2x - t3 * g3x, -t2 * g2y - t3 * g3y, -t2 * g2z - t3 * g3z
-        g0x, g0y, g0z = -(g1x + g2x + g3x), -(g1y + g2y + g3y), -(g1z + g2z + g3z)
         mag = hk[h] * d
         if hkd[h] != 0.0:
             rate = (g0x * (x[i0, 0] - xp[i0, 0]) + g0y * (x[i0, 1] - xp[i0, 1]) + g0z * (x[i0, 2] - xp[i0, 2])
@@ -63,18 +81,10 @@ def _add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, h0, h1):
                     + g2x * (x[i2, 0] - xp[i2, 0]) + g2y * (x[i2, 1] - xp[i2, 1]) + g2z * (x[i2, 2] - xp[i2, 2])
                     + g3x * (x[i3, 0] - xp[i3, 0]) + g3y * (x[i3, 1] - xp[i3, 1]) + g3z * (x[i3, 2] - xp[i3, 2]))
             mag += hkd[h] * rate * inv_dt
-        f_out[i0, 0] -= mag * g0x
-        f_out[i0, 1] -= mag * g0y
-        f_out[i0, 2] -= mag * g0z
-        f_out[i1, 0] -= mag * g1x
-        f_out[i1, 1] -= mag * g1y
-        f_out[i1, 2] -= mag * g1z
-        f_out[i2, 0] -= mag * g2x
-        f_out[i2, 1] -= mag * g2y
-        f_out[i2, 2] -= mag * g2z
-        f_out[i3, 0] -= mag * g3x
-        f_out[i3, 1] -= mag * g3y
-        f_out[i3, 2] -= mag * g3z
+        _add(f_out, i0, -mag, g0x, g0y, g0z)
+        _add(f_out, i1, -mag, g1x, g1y, g1z)
+        _add(f_out, i2, -mag, g2x, g2y, g2z)
+        _add(f_out, i3, -mag, g3x, g3y, g3z)
 
 
 @njit
@@ -107,3 +117,56 @@ def eval_hinge_forces(pos, pos_prev, dt, hinge_indices, k, kd, rest_angle):
                   np.ascontiguousarray(k, dtype=np.float64), np.ascontiguousarray(kd, dtype=np.float64),
                   np.ascontiguousarray(rest_angle, dtype=np.float64), out)
     return out
+
+
+@njit
+def _project_hinges(x, w, hi, h_alpha, hrest, lam, at_scale, h0, h1):
+    """One Gauss-Seidel sweep of hinges ``h0 .. h1 - 1`` as compliant angle constraints (XPBD, Macklin et al.
+    2016): ``C = theta - theta0``, compliance ``alpha = 1 / k`` (rad^2 / (N m)), ``at = alpha at_scale``::
+
+        dlam = (-C - at lam) / (sum_m w_m |g_m|^2 + at),   x_m += w_m g_m dlam
+
+    -- the implicit counterpart of :func:`_add_hinge_forces` for hinges stiffer than an explicit step can
+    carry (stable at any step; the same static balance ``k C = lam / dt^2``). Hinges with ``h_alpha`` 0
+    are explicit only and skipped."""
+    for h in range(h0, h1):
+        alpha = h_alpha[h]
+        if alpha <= 0.0:
+            continue
+        i0, i1, i2, i3 = hi[h, 0], hi[h, 1], hi[h, 2], hi[h, 3]
+        ok, d, g0x, g0y, g0z, g1x, g1y, g1z, g2x, g2y, g2z, g3x, g3y, g3z = _bend(x, i0, i1, i2, i3, hrest[h])
+        if not ok:
+            continue
+        w0, w1, w2, w3 = w[i0], w[i1], w[i2], w[i3]
+        den = (w0 * (g0x * g0x + g0y * g0y + g0z * g0z) + w1 * (g1x * g1x + g1y * g1y + g1z * g1z)
+               + w2 * (g2x * g2x + g2y * g2y + g2z * g2z) + w3 * (g3x * g3x + g3y * g3y + g3z * g3z))
+        at = alpha * at_scale
+        dl = (-d - at * lam[h]) / (den + at)
+        lam[h] += dl
+        _add(x, i0, w0 * dl, g0x, g0y, g0z)
+        _add(x, i1, w1 * dl, g1x, g1y, g1z)
+        _add(x, i2, w2 * dl, g2x, g2y, g2z)
+        _add(x, i3, w3 * dl, g3x, g3y, g3z)
+
+
+def project_hinges(pos, inv_mass, hinge_indices, compliance, rest_angle, lam, dt):
+    """One Gauss-Seidel sweep of the hinges as compliant angle constraints (:func:`_project_hinges`).
+
+    Parameters
+    ----------
+    pos : (n, 3) float64, m
+        Moved in place.
+    inv_mass : (n,) float64, 1/kg
+    hinge_indices : (h, 4) int64
+    compliance : (h,) float64, 1 / (N m)
+        ``1 / k``; 0 skips the hinge.
+    rest_angle : (h,) float64, rad
+    lam : (h,) float64
+        The multipliers, accumulated in place (0 at a step's first sweep).
+    dt : float, s
+    """
+    _project_hinges(pos, np.ascontiguousarray(inv_mass, dtype=np.float64),
+                    np.ascontiguousarray(hinge_indices, dtype=np.int64).reshape(-1, 4),
+                    np.ascontiguousarray(compliance, dtype=np.float64),
+                    np.ascontiguousarray(rest_angle, dtype=np.float64), lam, 1.0 / (float(dt) * float(dt)), 0,
+                    int(np.asarray(hinge_indices).reshape(-1, 4).shape[0]))

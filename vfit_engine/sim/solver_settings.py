@@ -42,6 +42,10 @@ class VerletSettings:
     stability_safety : float
         Fraction of the explicit stability bound the explicit springs are softened to; 0 disables
         softening.
+    implicit_hinges : bool
+        Solve the bending hinges too stiff for the explicit step as compliant angle constraints, with the
+        fabric's whole stiffness (else they are softened to the bound as the springs are: the drape then
+        bends more easily than the fabric where its mesh is fine or the fabric stiff).
     """
 
     substeps: int = 8
@@ -55,6 +59,7 @@ class VerletSettings:
     shear_restore: float = 0.02
     relax_by_stiffness: bool = True
     stability_safety: float = 0.2
+    implicit_hinges: bool = True
 
     def __post_init__(self):
         if int(self.substeps) < 1 or int(self.iterations) < 0:

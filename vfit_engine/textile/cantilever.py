@@ -48,16 +48,19 @@ def _strip_model(material, overhang, edge):
     return Model.from_polygons(fv, fo, pos, material, pin_indices=pins), h
 
 
-def droop(material, overhang, edge, max_time=20.0, still=2e-4):
+def droop(material, overhang, edge, max_time=20.0, still=2e-4, dt=None, implicit_hinges=True):
     """The tip's angle below the horizontal (degrees) of a strip ``overhang`` (m) over the edge, meshed at
     ``edge`` (m), once it is still (every vertex slower than ``still`` m/s over 0.1 s).
+
+    ``dt`` (s): the step (default: the largest at which every hinge is explicit); beyond it the stiff hinges
+    are constraints, or with ``implicit_hinges`` False softened (:class:`VerletSettings`).
 
     Returns
     -------
     angle : float, degrees
     info : dict
-        ``spacing_m``, ``dt_s``, ``sim_time_s``, ``vertices``, ``softened_hinges`` (0: the rigidity is the
-        material's everywhere).
+        ``spacing_m``, ``dt_s``, ``sim_time_s``, ``vertices``, ``implicit_hinges`` and ``softened_hinges``
+        (shares of the hinges; both 0: the rigidity is the material's explicit force everywhere).
     """
     from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
     from vfit_engine.textile.settle import fall_still
@@ -65,18 +68,20 @@ def droop(material, overhang, edge, max_time=20.0, still=2e-4):
     model, h = _strip_model(material, overhang, edge)
     # damping near critical for the strip's first mode (omega ~ 3.5 sqrt(g / l) at the test's droop)
     settings = VerletSettings(air_damping=2.0 * 3.5 * math.sqrt(9.81 / overhang), shear_limit_deg=None,
-                              bend_limit=None)
+                              bend_limit=None, implicit_hinges=implicit_hinges)
     solver = SolverVerlet(model, settings)
-    state, dt, t, settled = fall_still(solver, 1e-3, max_time, still, calm=5)
+    state, dt, t, settled = fall_still(solver, 1e-3, max_time, still, calm=5, dt=dt)
     tip = state.pos[np.isclose(model.rest_pos[:, 0], model.rest_pos[:, 0].max())]
     x, y = tip[:, 0].mean() + 0.5 * h, tip[:, 1].mean()
     info = dict(spacing_m=h, dt_s=dt, sim_time_s=t, vertices=model.particle_count,
-                softened_hinges=solver.softened_hinges, settled=settled)
+                implicit_hinges=solver.implicit_hinges, softened_hinges=solver.softened_hinges, settled=settled)
     return math.degrees(math.atan2(-y, x)), info
 
 
-def bending_length(material, edge=0.005, tolerance=0.1, max_tries=8):
-    """The cantilever test of ``material`` meshed at ``edge`` (m) (module docstring).
+def bending_length(material, edge=0.005, tolerance=0.1, max_tries=8, dt=None, implicit_hinges=True):
+    """The cantilever test of ``material`` meshed at ``edge`` (m) (module docstring), at the step ``dt`` (s;
+    default the largest at which every hinge is explicit) with hinges beyond it solved as constraints or,
+    ``implicit_hinges`` False, softened (:func:`droop`).
 
     Returns
     -------
@@ -90,7 +95,7 @@ def bending_length(material, edge=0.005, tolerance=0.1, max_tries=8):
     l = peirce_overhang(c)
     tries = []
     for _ in range(max_tries):
-        angle, info = droop(material, l, edge)
+        angle, info = droop(material, l, edge, dt=dt, implicit_hinges=implicit_hinges)
         tries.append(dict(overhang_m=l, angle_deg=angle))
         if abs(angle - ANGLE) <= tolerance or not 0.5 < angle < 89.5:
             break

@@ -5,12 +5,12 @@ from __future__ import annotations
 CHUNK = 0.02
 
 
-def fall_still(solver, max_dt, max_time, still, calm, after=0.0):
+def fall_still(solver, max_dt, max_time, still, calm, after=0.0, dt=None):
     """Run ``solver``'s model from rest at its rest shape until every vertex has been slower than ``still``
     (m/s) for ``calm`` checks in a row (one every :data:`CHUNK` s, none before ``after`` s), or ``max_time`` s.
 
-    The step is the largest at which no hinge is softened (:meth:`SolverVerlet.max_stable_dt`), at most
-    ``max_dt``: the bending is the material's everywhere.
+    The step is ``dt`` if given, else the largest at which every hinge is explicit
+    (:meth:`SolverVerlet.max_stable_dt`), at most ``max_dt``: the bending is the material's explicit force.
 
     Returns
     -------
@@ -19,7 +19,7 @@ def fall_still(solver, max_dt, max_time, still, calm, after=0.0):
     sim_time : float, s
     settled : bool
     """
-    dt = min(solver.max_stable_dt(), max_dt)
+    dt = min(solver.max_stable_dt(), max_dt) if dt is None else float(dt)
     state = solver.init_state(dt)
     chunk = max(1, int(round(CHUNK / dt)))
     quiet, t = 0, 0.0
