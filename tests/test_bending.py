@@ -165,3 +165,24 @@ def test_the_solver_step_holds_the_hinges_stiffness():
     _, _, hk, _, alpha = soft.effective_constants(4 * dt)
     assert not alpha.any() and soft.softened_hinges == soft.stiff_hinges > 0.0
     assert soft.bending_kept == pytest.approx(hk.sum() / model.hinges.k.sum()) and soft.bending_kept < 1.0
+
+
+def test_gradient_norms_match_finite_differences():
+    from vfit_engine.sim.bending import hinge_gradient_norms
+
+    rng = np.random.default_rng(3)
+    pos, fv, fo = grid_polygons(4, 3, 0.03, 0.02, quads=False)
+    x = pos + rng.normal(0, 2e-3, pos.shape)
+    h = build_hinges(fv, fo, pos, 1e-5)
+    got = hinge_gradient_norms(h.indices, x)
+    eps = 1e-7
+    for k in range(h.count):
+        ids = h.indices[k:k + 1]
+        for m in range(4):
+            g = np.zeros(3)
+            for c in range(3):
+                p, q = x.copy(), x.copy()
+                p[ids[0, m], c] += eps
+                q[ids[0, m], c] -= eps
+                g[c] = (hinge_angles(ids, p)[0] - hinge_angles(ids, q)[0]) / (2 * eps)
+            assert got[k, m] == pytest.approx(np.linalg.norm(g), rel=1e-5)

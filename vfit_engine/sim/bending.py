@@ -30,6 +30,7 @@ Shapes::
 
     build_hinges(face_verts (k,), face_offsets (m+1,), rest (n, 3), rigidity (2,), uv=None) -> Hinges
     hinge_angles(indices (h, 4), pos (n, 3)) -> (h,) rad
+    hinge_gradient_norms(indices (h, 4), pos (n, 3)) -> (h, 4) 1/m
     bending_energy(hinges, pos (n, 3)) -> J
 """
 from __future__ import annotations
@@ -113,6 +114,21 @@ def hinge_angles(indices, pos):
     le = np.linalg.norm(e, axis=1)
     s = np.einsum("ij,ij->i", np.cross(n0, n1), e) / np.where(le > 0, le, 1.0)
     return np.arctan2(s, np.einsum("ij,ij->i", n0, n1))
+
+
+def hinge_gradient_norms(indices, pos):
+    """(h, 4) float64, 1/m: |d theta / d x_m| of each hinge's vertices m = 0..3 at ``pos`` (the gradient of
+    :mod:`vfit_engine.kernels.bending`); the solver's stability bound on a hinge is built from them."""
+    x0, x1, x2, x3 = (pos[indices[:, k]] for k in range(4))
+    e = x1 - x0
+    le = np.maximum(np.linalg.norm(e, axis=1), 1e-300)
+    n0, n1 = np.cross(e, x2 - x0), np.cross(x3 - x0, e)
+    g2 = -(le / np.maximum(np.sum(n0 * n0, 1), 1e-300))[:, None] * n0
+    g3 = -(le / np.maximum(np.sum(n1 * n1, 1), 1e-300))[:, None] * n1
+    t2 = np.einsum("ij,ij->i", x2 - x0, e) / le ** 2
+    t3 = np.einsum("ij,ij->i", x3 - x0, e) / le ** 2
+    g1 = -t2[:, None] * g2 - t3[:, None] * g3
+    return np.stack([np.linalg.norm(g, axis=1) for g in (-(g1 + g2 + g3), g1, g2, g3)], axis=1)
 
 
 def uv_is_pattern(tris, tri_uvs, uvs, pos):

@@ -83,22 +83,6 @@ def _stable_scale(inv_mass, ksum, dsum, dt, safety):
     return scale
 
 
-def _gradient_norm(pos, indices, m):
-    """(h,) float64, 1/m: |d theta / d x_m| at ``pos`` of vertex ``m`` (0-3) of every hinge
-    (:mod:`vfit_engine.kernels.bending`)."""
-    x0, x1, x2, x3 = (pos[indices[:, k]] for k in range(4))
-    e = x1 - x0
-    le = np.maximum(np.linalg.norm(e, axis=1), 1e-300)
-    n0, n1 = np.cross(e, x2 - x0), np.cross(x3 - x0, e)
-    g2 = -(le / np.maximum(np.sum(n0 * n0, 1), 1e-300))[:, None] * n0
-    g3 = -(le / np.maximum(np.sum(n1 * n1, 1), 1e-300))[:, None] * n1
-    t2 = np.einsum("ij,ij->i", x2 - x0, e) / le ** 2
-    t3 = np.einsum("ij,ij->i", x3 - x0, e) / le ** 2
-    g1 = -t2[:, None] * g2 - t3[:, None] * g3
-    g = (-(g1 + g2 + g3), g1, g2, g3)[m]
-    return np.linalg.norm(g, axis=1)
-
-
 def _corner_angle(pos, ends, corner):
     """(k,) float64, radians: the angle at ``corner`` (k,) between ``ends`` (k, 2)."""
     u = pos[ends[:, 0]] - pos[corner]
@@ -400,10 +384,12 @@ class SolverVerlet:
         return h_v[m.hinges.indices].min(axis=1)
 
     def _hinge_gradient_norms(self):
-        """(h, 4) float64, 1/m: |d theta / d x| of every hinge's vertices at rest (:mod:`.bending` kernel)."""
+        """(h, 4) float64, 1/m: |d theta / d x| of every hinge's vertices at rest."""
+        from vfit_engine.sim.bending import hinge_gradient_norms
+
         if self._hinge_g is None:
             h, pos = self.model.hinges, self.model.rest_pos
-            self._hinge_g = np.stack([_gradient_norm(pos, h.indices, m) for m in range(4)], axis=1)
+            self._hinge_g = hinge_gradient_norms(h.indices, pos)
         return self._hinge_g
 
     def max_stable_dt(self):
