@@ -2,7 +2,8 @@
 
 It shares no code with vfit's kernels: the section comes from ``trimesh``, the
 hull from ``scipy.spatial.ConvexHull``, the bands are re-derived here from
-MEASUREMENTS.md and the ruler vertex lists.
+MEASUREMENTS.md and the ruler vertex lists; the bust points from the rig's skin
+weights read straight from ``data/hm08.npz`` (README, "Measurement definitions").
 """
 import json
 from pathlib import Path
@@ -11,12 +12,39 @@ import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull
 
-RULERS = Path(__file__).resolve().parents[1] / "data" / "rulers.json"
+DATA = Path(__file__).resolve().parents[1] / "data"
+RULERS = DATA / "rulers.json"
 BANDS = {  # name: (ruler, below, above, max|min) in metres, from shared/reference/MEASUREMENTS.md
-    "bust": ("bust-circ", 0.03, 0.03, "max"),
     "underbust": ("underbust-circ", 0.02, 0.02, "min"),
     "hips": ("hips-circ", 0.04, 0.04, "max"),
 }
+
+
+def breast_vertices():
+    """Per side, the body vertices whose largest skin weight (> 0.5) is the breast.L / breast.R bone."""
+    with np.load(DATA / "hm08.npz") as d:
+        names = [str(b) for b in d["bone_names"]]
+        bone, vert, w = d["skin_bone"].astype(int), d["skin_vertex"].astype(int), d["skin_weight"].astype(float)
+    out = []
+    for side in ("breast.L", "breast.R"):
+        b = names.index(side)
+        best = {}
+        for bb, vv, ww in zip(bone, vert, w):
+            if vv < 13380 and ww > best.get(vv, (0.0, -1))[0]:
+                best[vv] = (ww, bb)
+        out.append(np.array(sorted(v for v, (ww, bb) in best.items() if bb == b and ww > 0.5)))
+    return out
+
+
+def bust_height(mesh, verts, breasts):
+    """Mean height of the two bust points (most anterior breast vertex per side); where the section there
+    does not show the torso and both arms apart, the highest such plane below it (2 mm steps, 15 cm)."""
+    y = np.mean([verts[idx[np.argmax(verts[idx, 2])], 1] for idx in breasts])
+    for yy in [y] + list(y - 0.002 * np.arange(1, 75)):
+        path = mesh.section(plane_origin=[0, yy, 0], plane_normal=[0, 1, 0])
+        if path is not None and len(path.discrete) >= 3:
+            return float(yy)
+    return float(y)
 
 
 def torso_hull_girth(mesh: trimesh.Trimesh, y: float) -> float:
@@ -37,16 +65,23 @@ def torso_hull_girth(mesh: trimesh.Trimesh, y: float) -> float:
     return float(np.linalg.norm(np.roll(hull, -1, axis=0) - hull, axis=1).sum())
 
 
-def tape_measure(verts, quads):
-    """ISO-style girths (m) of a body: bust, underbust, waist, hips, height, at 1 mm plane steps."""
+def tape_measure(verts, quads, breasts=None):
+    """ISO-style girths (m) of a body: bust, underbust, waist, hips, height, at 1 mm plane steps.
+
+    ``breasts``: :func:`breast_vertices` (read once and passed in by callers measuring many bodies).
+    """
     rulers = json.loads(RULERS.read_text())["rulers"]
     verts = np.asarray(verts)[:13380]
     tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     mesh = trimesh.Trimesh(verts, tris, process=False)
-    mean_y = {k: verts[rulers[k]["vertex_indices"], 1].mean() for k in ("bust-circ", "underbust-circ", "hips-circ")}
+    bust_y = bust_height(mesh, verts, breast_vertices() if breasts is None else breasts)
+    mean_y = {k: verts[rulers[k]["vertex_indices"], 1].mean() for k in ("underbust-circ", "hips-circ")}
     bands = {n: (mean_y[r] - lo, mean_y[r] + hi, mode) for n, (r, lo, hi, mode) in BANDS.items()}
+    lo, hi, mode = bands["underbust"]
+    hi = min(hi, bust_y - 0.01)  # below the bust plane by 1 cm, and 4 cm long at least
+    bands["underbust"] = (min(lo, hi - 0.04), hi, mode)
     bands["waist"] = (*sorted((mean_y["hips-circ"], mean_y["underbust-circ"])), "min")
-    out = {"height": float(verts[:, 1].max() - verts[:, 1].min())}
+    out = {"height": float(verts[:, 1].max() - verts[:, 1].min()), "bust": torso_hull_girth(mesh, bust_y)}
     for name, (lo, hi, mode) in bands.items():
         ys = np.linspace(lo, hi, int(np.ceil((hi - lo) / 0.001 - 1e-9)) + 1)
         g = np.array([torso_hull_girth(mesh, y) for y in ys])

@@ -4,10 +4,17 @@ Definitions (``definition=``), after ``shared/reference/MEASUREMENTS.md``:
 
 ``iso`` (default) - tailoring tape measures, ISO 8559-1 style
     * height: stature, max Y - min Y of the 13,380 body vertices.
-    * bust: the largest torso tape girth over horizontal planes within +-3 cm of
-      the mean height of the MakeHuman bust ruler's vertices.
-    * underbust: the smallest torso tape girth within +-2 cm of the mean height
-      of the underbust ruler's vertices.
+    * bust (ISO 8559-1 "bust girth"; for men "chest girth"): the torso tape
+      girth at the height of the bust points - on each side the most anterior
+      vertex of the breast (the vertices the rig's breast bone skins most) -
+      averaged over the two sides; where the arms have not yet separated from
+      the torso at that height (heavy bodies whose armpit is low), just under
+      the armpits instead (the highest plane, 2 mm steps, where the section
+      shows the torso and both arms apart), as a tape passes under them.
+    * underbust (ISO 8559-1 "underbust girth", just below the breasts): the
+      smallest torso tape girth within +-2 cm of the mean height of the
+      underbust ruler's vertices, the band kept at least 1 cm below the bust
+      plane (and 4 cm long), so a low bust can never put it above the bust.
     * waist: the smallest torso tape girth between the mean heights of the hips
       ruler and of the underbust ruler (the natural, narrowest waist).
     * hips: the largest torso tape girth within +-4 cm of the mean height of the
@@ -50,12 +57,18 @@ RULER_OF = {"bust": "bust-circ", "underbust": "underbust-circ", "waist": "waist-
             "neck": "neck-circ", "upper-arm": "upperarm-circ", "thigh": "thigh-circ", "calf": "calf-circ"}
 #: plane-based torso girths: (ruler whose mean height anchors the band, band below, band above, max or min)
 _BANDS = {
-    "bust": ("bust-circ", 0.03, 0.03, "max"),
     "underbust": ("underbust-circ", 0.02, 0.02, "min"),
     "hips": ("hips-circ", 0.04, 0.04, "max"),
 }
+#: the underbust band stays this far below the bust plane, and at least this long (m)
+UNDERBUST_GAP, UNDERBUST_MIN_BAND = 0.01, 0.04
+#: the bust plane lies this far below the bust points' mean height (m), off their vertex row
+BUST_PLANE_OFFSET = 1e-5
+#: how far below the bust points the armpit search looks, and its step (m)
+ARMPIT_SEARCH, ARMPIT_STEP = 0.15, 0.002
 PLANE_STEP = 0.001  # m
 _PLANE_GIRTHS = ("bust", "underbust", "waist", "hips")
+_BAND_GIRTHS = ("underbust", "waist", "hips")
 
 
 @dataclass
@@ -76,13 +89,32 @@ class Measurement:
         return {k: round(v / LENGTH_UNITS["cm"], 3) for k, v in self.values.items()}
 
 
-def band_limits(verts: np.ndarray, rulers: dict) -> dict:
-    """(lo, hi, 'max'|'min') of every plane-based girth for a body, in metres."""
-    mean_y = {k: float(verts[rulers[k]["vertex_indices"], 1].mean()) for k in ("bust-circ", "underbust-circ", "hips-circ")}
+def band_limits(verts: np.ndarray, rulers: dict, bust_y: float = np.inf) -> dict:
+    """(lo, hi, 'max'|'min') of the band-searched girths (underbust, waist, hips) of a body, in metres.
+
+    ``bust_y`` : the bust plane (m); the underbust band is kept below it (see the module docstring).
+    """
+    mean_y = {k: float(verts[rulers[k]["vertex_indices"], 1].mean()) for k in ("underbust-circ", "hips-circ")}
     out = {name: (mean_y[r] - below, mean_y[r] + above, mode) for name, (r, below, above, mode) in _BANDS.items()}
+    lo, hi, mode = out["underbust"]
+    hi = min(hi, bust_y - UNDERBUST_GAP)
+    out["underbust"] = (min(lo, hi - UNDERBUST_MIN_BAND), hi, mode)
     lo, hi = sorted((mean_y["hips-circ"], mean_y["underbust-circ"]))
     out["waist"] = (lo, hi, "min")
     return out
+
+
+def breast_regions(model: BodyModel) -> tuple[np.ndarray, np.ndarray]:
+    """Body vertices skinned most by the rig's ``breast.L`` and by its ``breast.R`` bone (weight > 0.5)."""
+    bone, vert, weight = model.skin
+    keep = vert < N_BODY
+    best = np.zeros(N_BODY)
+    best_bone = np.full(N_BODY, -1)
+    for b, v, w in zip(bone[keep], vert[keep], weight[keep]):
+        if w > best[v]:
+            best[v], best_bone[v] = w, b
+    return tuple(np.flatnonzero((best_bone == model.bone_names.index(side)) & (best > 0.5))
+                 for side in ("breast.L", "breast.R"))
 
 
 def _band_anchors(name: str, fraction: float):
@@ -127,6 +159,20 @@ class Measurer:
         self.rulers = self.model.rulers
         self.tris = self.model.body_tris
         self.sections = MeshSections(self.tris, N_BODY)
+        self.breasts = breast_regions(self.model)
+
+    def bust_plane(self, verts) -> tuple[float, np.ndarray]:
+        """The bust plane y (m) and the vertices it follows (the two bust points; none when it is held
+        under the armpits). See the module docstring."""
+        points = np.array([idx[np.argmax(verts[idx, 2])] for idx in self.breasts])
+        # 10 um below the points: a plane through a vertex row sits on the girth's kink there
+        y = float(verts[points, 1].mean()) - BUST_PLANE_OFFSET
+        if len(self.sections.loops(verts, y)) >= 3:
+            return y, points
+        for yy in np.arange(y - ARMPIT_STEP, y - ARMPIT_SEARCH, -ARMPIT_STEP):
+            if len(self.sections.loops(verts, yy)) >= 3:
+                return float(yy), points[:0]
+        return y, points
 
     def _girth_method(self, definition):
         return "spline" if definition == "spline" else "hull"
@@ -173,14 +219,23 @@ class Measurer:
             return ruler_gradient(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
         if definition == "spline":
             return None
-        lo, hi, _ = band_limits(verts, self.rulers)[name]
-        y = lo + fraction * (hi - lo)
+        bust_y, points = self.bust_plane(verts)
+        if name == "bust":
+            y, anchors = bust_y, ()
+        else:
+            lo, hi, _ = band_limits(verts, self.rulers, bust_y)[name]
+            y, anchors = lo + fraction * (hi - lo), _band_anchors(name, fraction)
         idx, grad = girth_gradient(self.sections, verts, y)
         eps = 1e-6  # local: g(y) has kinks where the plane passes vertex rows, often within 10 um
         g_lo, g_hi = self.sections.girths(verts, np.array([y - eps, y + eps]))
         dg_dy = (g_hi - g_lo) / (2 * eps)
         parts_i, parts_g = [idx], [grad]
-        for ruler, weight in _band_anchors(name, fraction):
+        if name == "bust" and points.size:  # the plane follows the bust points' mean height
+            g = np.zeros((points.size, 3))
+            g[:, 1] = dg_dy / points.size
+            parts_i.append(points)
+            parts_g.append(g)
+        for ruler, weight in anchors:
             r_idx = np.asarray(self.rulers[ruler]["vertex_indices"], dtype=np.int64)
             g = np.zeros((r_idx.size, 3))
             g[:, 1] = dg_dy * weight / r_idx.size
@@ -189,8 +244,19 @@ class Measurer:
         return np.concatenate(parts_i), np.concatenate(parts_g)
 
     def mass(self, verts) -> float:
-        """Body mass (kg): enclosed volume of the body mesh times ``DENSITY``."""
-        return enclosed_volume(verts, self.tris) * DENSITY
+        """Body mass (kg): enclosed volume of the body mesh times ``DENSITY`` (a Numba kernel;
+        :func:`enclosed_volume` is its NumPy reference)."""
+        from ..kernels.volume import enclosed_volume as volume
+
+        return volume(np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64), self.tris) * DENSITY
+
+    def mass_gradient(self, verts) -> np.ndarray:
+        """(13380, 3) float64: d mass / d vertex (kg per m)."""
+        from ..kernels.volume import volume_gradient
+
+        grad = np.empty((N_BODY, 3))
+        volume_gradient(np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64), self.tris, grad)
+        return grad * DENSITY
 
     def measure(self, verts, definition="iso", planes=None, names=NAMES, mass=True) -> Measurement:
         """Measure a body.
@@ -223,7 +289,11 @@ class Measurer:
                 values[name] = ruler_length(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
             else:
                 if bands is None:
-                    bands = band_limits(verts, self.rulers)
+                    bust_y = self.bust_plane(verts)[0]
+                    bands = band_limits(verts, self.rulers, bust_y)
+                if name == "bust":
+                    values[name], used[name] = self.torso_girth(verts, bust_y, definition), bust_y
+                    continue
                 lo, hi, mode = bands[name]
                 if planes is not None and name in planes:
                     # fixed planes, given as fractions of the band: they move with the band
