@@ -36,15 +36,33 @@ def breast_vertices():
     return out
 
 
-def bust_height(mesh, verts, breasts):
-    """Mean height of the two bust points (most anterior breast vertex per side); where the section there
-    does not show the torso and both arms apart, the highest such plane below it (2 mm steps, 15 cm)."""
-    y = np.mean([verts[idx[np.argmax(verts[idx, 2])], 1] for idx in breasts])
-    for yy in [y] + list(y - 0.002 * np.arange(1, 75)):
-        path = mesh.section(plane_origin=[0, yy, 0], plane_normal=[0, 1, 0])
-        if path is not None and len(path.discrete) >= 3:
-            return float(yy)
-    return float(y)
+def _apart(mesh, y):
+    """Torso and both arms apart: one loop across x = 0, and another loop wholly on each side of it."""
+    path = mesh.section(plane_origin=[0, y, 0], plane_normal=[0, 1, 0])
+    if path is None:
+        return False
+    xs = [(float(np.min(d[:, 0])), float(np.max(d[:, 0]))) for d in map(np.asarray, path.discrete)]
+    torso = [r for r in xs if r[0] <= 0.0 <= r[1]]
+    return len(torso) == 1 and any(r[1] < torso[0][0] for r in xs) and any(r[0] > torso[0][1] for r in xs)
+
+
+def bust_band(mesh, verts, breasts):
+    """(lo, hi) m: from the bust points' mean height (most anterior breast vertex per side, 10 um below)
+    up, in 1 mm steps, to the last plane whose section shows the torso and both arms apart; where they
+    are not apart there, the one plane just under the armpits (the first apart plane going down)."""
+    y = np.mean([verts[idx[np.argmax(verts[idx, 2])], 1] for idx in breasts]) - 1e-5
+    steps = np.arange(1, 151) * 0.001
+    if _apart(mesh, y):
+        top = y
+        for d in steps:
+            if not _apart(mesh, y + d):
+                break
+            top = y + d
+        return float(y), float(top)
+    for d in steps:
+        if _apart(mesh, y - d):
+            return float(y - d), float(y - d)
+    return float(y), float(y)
 
 
 def torso_hull_girth(mesh: trimesh.Trimesh, y: float) -> float:
@@ -74,14 +92,15 @@ def tape_measure(verts, quads, breasts=None):
     verts = np.asarray(verts)[:13380]
     tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     mesh = trimesh.Trimesh(verts, tris, process=False)
-    bust_y = bust_height(mesh, verts, breast_vertices() if breasts is None else breasts)
+    bust_lo, bust_hi = bust_band(mesh, verts, breast_vertices() if breasts is None else breasts)
     mean_y = {k: verts[rulers[k]["vertex_indices"], 1].mean() for k in ("underbust-circ", "hips-circ")}
     bands = {n: (mean_y[r] - lo, mean_y[r] + hi, mode) for n, (r, lo, hi, mode) in BANDS.items()}
     lo, hi, mode = bands["underbust"]
-    hi = min(hi, bust_y - 0.01)  # below the bust plane by 1 cm, and 4 cm long at least
+    hi = min(hi, bust_lo - 0.01)  # below the bust points by 1 cm, and 4 cm long at least
     bands["underbust"] = (min(lo, hi - 0.04), hi, mode)
     bands["waist"] = (*sorted((mean_y["hips-circ"], mean_y["underbust-circ"])), "min")
-    out = {"height": float(verts[:, 1].max() - verts[:, 1].min()), "bust": torso_hull_girth(mesh, bust_y)}
+    bands["bust"] = (bust_lo, bust_hi, "max")
+    out = {"height": float(verts[:, 1].max() - verts[:, 1].min())}
     for name, (lo, hi, mode) in bands.items():
         ys = np.linspace(lo, hi, int(np.ceil((hi - lo) / 0.001 - 1e-9)) + 1)
         g = np.array([torso_hull_girth(mesh, y) for y in ys])

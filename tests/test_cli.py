@@ -101,7 +101,7 @@ def test_morph_usage_errors(tmp_path, args, needle):
 
 @pytest.mark.parametrize("args,needle", [
     (["--waist", "20"], "refused: waist is 12.7 standard deviations below"),
-    (["--bust", "70", "--underbust", "90"], "cannot be met together: bust 70.0 cm (reachable"),
+    (["--bust", "70", "--underbust", "90"], "cannot be met together: bust 70.0 cm ("),
     (["--weight", "400", "--height", "150"], "refused: mass is 11.1 standard deviations above"),
 ])
 def test_morph_unreachable(tmp_path, args, needle):

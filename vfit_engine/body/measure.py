@@ -4,13 +4,18 @@ Definitions (``definition=``), after ``shared/reference/MEASUREMENTS.md``:
 
 ``iso`` (default) - tailoring tape measures, ISO 8559-1 style
     * height: stature, max Y - min Y of the 13,380 body vertices.
-    * bust (ISO 8559-1 "bust girth"; for men "chest girth"): the torso tape
-      girth at the height of the bust points - on each side the most anterior
-      vertex of the breast (the vertices the rig's breast bone skins most) -
-      averaged over the two sides; where the arms have not yet separated from
-      the torso at that height (heavy bodies whose armpit is low), just under
-      the armpits instead (the highest plane, 2 mm steps, where the section
-      shows the torso and both arms apart), as a tape passes under them.
+    * bust (ISO 8559-1 / EN 13402-1 "bust girth", for men "chest girth"):
+      the largest torso tape girth over planes from the bust points up to just
+      under the armpits. A bust point is the most anterior point of the breast:
+      on each side the most anterior vertex of those the rig's breast bone skins
+      most; the band starts at their mean height (10 um below it, off their
+      vertex row). It ends at the last plane, in 1 mm steps up from there, whose
+      section still shows the torso and both arms apart (one loop spanning
+      x = 0 and another wholly on each side of it): a tape passes under the
+      arms. A woman's bust is then the girth at (or within millimetres of)
+      her bust points, a man's chest the girth under his armpits. Where the arms
+      have not separated from the torso even at the bust points (heavy bodies
+      with a low armpit) the band is the one plane just under the armpits.
     * underbust (ISO 8559-1 "underbust girth", just below the breasts): the
       smallest torso tape girth within +-2 cm of the mean height of the
       underbust ruler's vertices, the band kept at least 1 cm below the bust
@@ -60,15 +65,14 @@ _BANDS = {
     "underbust": ("underbust-circ", 0.02, 0.02, "min"),
     "hips": ("hips-circ", 0.04, 0.04, "max"),
 }
-#: the underbust band stays this far below the bust plane, and at least this long (m)
+#: the underbust band stays this far below the bust points' plane, and at least this long (m)
 UNDERBUST_GAP, UNDERBUST_MIN_BAND = 0.01, 0.04
-#: the bust plane lies this far below the bust points' mean height (m), off their vertex row
+#: the bust band starts this far below the bust points' mean height (m), off their vertex row
 BUST_PLANE_OFFSET = 1e-5
-#: how far below the bust points the armpit search looks, and its step (m)
-ARMPIT_SEARCH, ARMPIT_STEP = 0.15, 0.002
+#: the armpit search: how far it looks from the bust points, its coarse step and its final step (m)
+ARMPIT_SEARCH, ARMPIT_COARSE, ARMPIT_STEP = 0.15, 0.01, 0.001
 PLANE_STEP = 0.001  # m
 _PLANE_GIRTHS = ("bust", "underbust", "waist", "hips")
-_BAND_GIRTHS = ("underbust", "waist", "hips")
 
 
 @dataclass
@@ -89,15 +93,17 @@ class Measurement:
         return {k: round(v / LENGTH_UNITS["cm"], 3) for k, v in self.values.items()}
 
 
-def band_limits(verts: np.ndarray, rulers: dict, bust_y: float = np.inf) -> dict:
-    """(lo, hi, 'max'|'min') of the band-searched girths (underbust, waist, hips) of a body, in metres.
+def band_limits(verts: np.ndarray, rulers: dict, bust: tuple = (np.inf, np.inf)) -> dict:
+    """(lo, hi, 'max'|'min') of every plane-based girth of a body, in metres.
 
-    ``bust_y`` : the bust plane (m); the underbust band is kept below it (see the module docstring).
+    ``bust`` : (lo, hi) of the bust band (:meth:`Measurer.bust_band`); the underbust band is kept
+    below its bottom (see the module docstring).
     """
     mean_y = {k: float(verts[rulers[k]["vertex_indices"], 1].mean()) for k in ("underbust-circ", "hips-circ")}
     out = {name: (mean_y[r] - below, mean_y[r] + above, mode) for name, (r, below, above, mode) in _BANDS.items()}
+    out["bust"] = (bust[0], bust[1], "max")
     lo, hi, mode = out["underbust"]
-    hi = min(hi, bust_y - UNDERBUST_GAP)
+    hi = min(hi, bust[0] - UNDERBUST_GAP)
     out["underbust"] = (min(lo, hi - UNDERBUST_MIN_BAND), hi, mode)
     lo, hi = sorted((mean_y["hips-circ"], mean_y["underbust-circ"]))
     out["waist"] = (lo, hi, "min")
@@ -161,18 +167,45 @@ class Measurer:
         self.sections = MeshSections(self.tris, N_BODY)
         self.breasts = breast_regions(self.model)
 
-    def bust_plane(self, verts) -> tuple[float, np.ndarray]:
-        """The bust plane y (m) and the vertices it follows (the two bust points; none when it is held
-        under the armpits). See the module docstring."""
+    def bust_band(self, verts) -> tuple[float, float, np.ndarray]:
+        """(lo, hi, points): the bust band (m) and the vertices its bottom follows (the two bust points;
+        none where the band is held under the armpits). See the module docstring."""
         points = np.array([idx[np.argmax(verts[idx, 2])] for idx in self.breasts])
-        # 10 um below the points: a plane through a vertex row sits on the girth's kink there
         y = float(verts[points, 1].mean()) - BUST_PLANE_OFFSET
-        if len(self.sections.loops(verts, y)) >= 3:
-            return y, points
-        for yy in np.arange(y - ARMPIT_STEP, y - ARMPIT_SEARCH, -ARMPIT_STEP):
-            if len(self.sections.loops(verts, yy)) >= 3:
-                return float(yy), points[:0]
-        return y, points
+        if self._apart(verts, y):
+            return y, self._last_apart(verts, y, +1), points
+        y = self._last_apart(verts, y, -1, want=True)  # the arms join the torso here: go down to the armpit
+        return y, y, points[:0]
+
+    def _apart(self, verts, y) -> bool:
+        """Does the section at ``y`` show the torso and both arms apart: a loop spanning the centre
+        line x = 0 and, wholly to either side of it, at least one other loop?"""
+        loops = self.sections.loops(verts, y)
+        torso = [p for p in loops if p[:, 0].min() <= 0.0 <= p[:, 0].max()]
+        if len(torso) != 1:
+            return False
+        x0, x1 = torso[0][:, 0].min(), torso[0][:, 0].max()
+        return any(p[:, 0].max() < x0 for p in loops) and any(p[:, 0].min() > x1 for p in loops)
+
+    def _last_apart(self, verts, y, direction, want=False):
+        """From ``y`` (where the arms are apart, or with ``want`` not yet), the last plane on the 1 mm
+        grid in ``direction`` whose arms-apart state is still that of ``y`` - or, with ``want``, the
+        first where they are apart: a 1 cm coarse walk, then bisection on the 1 mm grid."""
+        state = not want
+        k_step = int(round(ARMPIT_COARSE / ARMPIT_STEP))
+        last = 0  # in 1 mm grid steps from y
+        for k in range(k_step, int(round(ARMPIT_SEARCH / ARMPIT_STEP)) + 1, k_step):
+            if self._apart(verts, y + direction * k * ARMPIT_STEP) != state:
+                lo, hi = last, k  # the state holds at lo and has changed at hi
+                while hi - lo > 1:
+                    mid = (lo + hi) // 2
+                    if self._apart(verts, y + direction * mid * ARMPIT_STEP) == state:
+                        lo = mid
+                    else:
+                        hi = mid
+                return y + direction * (hi if want else lo) * ARMPIT_STEP
+            last = k
+        return y + direction * last * ARMPIT_STEP if not want else y
 
     def _girth_method(self, definition):
         return "spline" if definition == "spline" else "hull"
@@ -219,18 +252,18 @@ class Measurer:
             return ruler_gradient(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
         if definition == "spline":
             return None
-        bust_y, points = self.bust_plane(verts)
-        if name == "bust":
-            y, anchors = bust_y, ()
-        else:
-            lo, hi, _ = band_limits(verts, self.rulers, bust_y)[name]
-            y, anchors = lo + fraction * (hi - lo), _band_anchors(name, fraction)
+        b_lo, b_hi, points = self.bust_band(verts)
+        lo, hi, _ = band_limits(verts, self.rulers, (b_lo, b_hi))[name]
+        y = lo + fraction * (hi - lo)
+        anchors = () if name == "bust" else _band_anchors(name, fraction)
         idx, grad = girth_gradient(self.sections, verts, y)
         eps = 1e-6  # local: g(y) has kinks where the plane passes vertex rows, often within 10 um
         g_lo, g_hi = self.sections.girths(verts, np.array([y - eps, y + eps]))
         dg_dy = (g_hi - g_lo) / (2 * eps)
         parts_i, parts_g = [idx], [grad]
-        if name == "bust" and points.size:  # the plane follows the bust points' mean height
+        if name == "bust" and points.size:
+            # the whole band follows the bust points' mean height: its top is a whole number of
+            # millimetres above its bottom, a count that a small change of the body leaves alone
             g = np.zeros((points.size, 3))
             g[:, 1] = dg_dy / points.size
             parts_i.append(points)
@@ -289,12 +322,9 @@ class Measurer:
                 values[name] = ruler_length(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
             else:
                 if bands is None:
-                    bust_y = self.bust_plane(verts)[0]
-                    bands = band_limits(verts, self.rulers, bust_y)
-                if name == "bust":
-                    values[name], used[name] = self.torso_girth(verts, bust_y, definition), bust_y
-                    continue
+                    bands = band_limits(verts, self.rulers, self.bust_band(verts)[:2])
                 lo, hi, mode = bands[name]
+                span = (hi - lo) or 1.0  # a one-plane band (the bust held under the armpits)
                 if planes is not None and name in planes:
                     # fixed planes, given as fractions of the band: they move with the band
                     ts = np.atleast_1d(planes[name])
@@ -303,8 +333,8 @@ class Measurer:
                     values[name], used[name], frac[name] = g[k], lo + ts[k] * (hi - lo), float(ts[k])
                 else:
                     values[name], used[name], ys = self.scan_girth(verts, lo, hi, mode, definition)
-                    cand[name] = (ys - lo) / (hi - lo)
-                    frac[name] = (used[name] - lo) / (hi - lo)
+                    cand[name] = (ys - lo) / span
+                    frac[name] = (used[name] - lo) / span
         if definition == "makehuman" and planes is None:
             for key, r in self.rulers.items():
                 values.setdefault(key, ruler_length(verts, r["vertex_indices"]))
