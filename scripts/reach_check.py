@@ -45,6 +45,12 @@ def independent(verts, quads, targets_cm, weight_kg, breasts, tape=True):
     return err, (mass - weight_kg if weight_kg is not None else None), mass
 
 
+def _obj_vertices(path):
+    """The ``v`` lines of an OBJ in file order (no loader that would split vertices at UV seams)."""
+    with open(path) as fh:
+        return np.array([[float(t) for t in ln.split()[1:4]] for ln in fh if ln.startswith("v ")])
+
+
 def run_list(quads, breasts):
     exe = Path(sys.executable).parent / "vfit"
     print(f"{'body':18s} {'max err mm':>10s} {'mass err kg':>11s} {'mass kg':>8s} {'CLI s':>6s}  warnings")
@@ -62,13 +68,11 @@ def run_list(quads, breasts):
             if p.returncode:
                 print(f"{name:18s} FAILED ({dt:.2f} s): {p.stderr.strip()}")
                 continue
-            import trimesh
-
-            verts = np.asarray(trimesh.load(out, process=False).vertices)
+            verts = _obj_vertices(out)
             err, dm, mass = independent(verts, quads, cm, kg, breasts)
             warn = "; ".join(json.loads(rep.read_text())["warnings"])
             dm_text = f"{dm:+.3f}" if dm is not None else "-"
-            print(f"{name:18s} {err:10.3f} {dm_text:>11s} {mass:8.1f} {dt:6.2f}  {warn}")
+            print(f"{name:18s} {err:10.3f} {dm_text:>11s} {mass:8.1f} {dt:6.2f}  {warn}", flush=True)
 
 
 def population_bodies(pop):
@@ -114,7 +118,7 @@ def run_population(model, quads, breasts, tape):
                 continue
             dt = time.perf_counter() - t
             err, dm, _ = independent(res.verts, quads, cm, body["mass"], breasts, tape)
-            print(f"{row} {err:10.3f} {dm:+11.3f} {dt:5.2f}")
+            print(f"{row} {err:10.3f} {dm:+11.3f} {dt:5.2f}", flush=True)
 
 
 def main():

@@ -17,8 +17,9 @@ def gauss_newton(fun, x, lo, hi, reg, planes, hard=None, jac=None, max_iter=40, 
     objective stalls (relative decrease < 1e-2) or is tiny, with the ``hard``
     residuals (all by default) under 0.03 (in their units, here 0.03 mm; the
     caller verifies its own tolerance afterwards) and the other residuals under
-    ``soft_tol``, or after three unclipped steps that each gain less than
-    0.1 % (a target out of reach). With ``jac(x,
+    ``soft_tol``, or, while a hard residual is missed, after three unclipped
+    steps that each gain less than 0.1 % or six steps that gain less than 1 %
+    together (a target out of reach). With ``jac(x,
     planes) -> J`` the exact Jacobian is used at every iterate instead.
     """
     from scipy.optimize import lsq_linear
@@ -46,6 +47,7 @@ def gauss_newton(fun, x, lo, hi, reg, planes, hard=None, jac=None, max_iter=40, 
     A_reg = np.diag(reg)
     delta = 1.0
     crawling = 0
+    history = []
     for _ in range(max_iter):
         A = np.vstack([J, A_reg])
         rhs = -np.concatenate([r, reg * x])
@@ -85,4 +87,8 @@ def gauss_newton(fun, x, lo, hi, reg, planes, hard=None, jac=None, max_iter=40, 
             break
         if crawling >= 3:  # three steps that each gain < 0.1 %: a target out of reach holds it there
             break
+        history.append(f)
+        met = np.all(np.abs(r[hard]) < 0.03)
+        if not met and len(history) > 6 and history[-7] - f < 0.01 * history[-7]:
+            break  # six steps, clipped or not, gained < 1 % together while a target is missed: out of reach
     return x, r
