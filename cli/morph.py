@@ -76,16 +76,7 @@ def morph(gender, height, weight, definition, output, json_path, quiet, **girths
 
     achieved = res.measurement.cm()
     start = res.start.cm()
-    rows = []
-    for k in NAMES:
-        want = targets.get(k)
-        rows.append([f"{k} (cm)", f"{want * 100:.2f}" if want is not None else _estimate(res, k, 100.0),
-                     f"{achieved[k]:.2f}", f"{(achieved[k] - want * 100) * 10:+.2f}" if want is not None else "",
-                     f"{start[k]:.2f}"])
-    rows.append(["mass (kg)", f"{weight:.2f}" if weight else _estimate(res, "mass", 1.0),
-                 f"{res.measurement.mass_kg:.2f}",
-                 f"{(res.measurement.mass_kg / weight - 1) * 100:+.2f} %" if weight else "",
-                 f"{res.start.mass_kg:.2f}"])
+    rows = _table_rows(res, targets, weight, achieved, start, NAMES)
     for line in res.warnings:
         click.echo(f"warning: {line}", err=True)
     if not quiet:
@@ -143,3 +134,18 @@ def _source():
     from vfit_engine.body.population import CITATION
 
     return CITATION
+
+
+def _table_rows(res, targets, weight, achieved, start, names):
+    """The printed table: target (or the estimate), achieved, error and start of every measurement."""
+    rows = []
+    for k in names:
+        want = targets.get(k)
+        rows.append([f"{k} (cm)", f"{want * 100:.2f}" if want is not None else _estimate(res, k, 100.0),
+                     f"{achieved[k]:.2f}", f"{(achieved[k] - want * 100) * 10:+.2f}" if want is not None else "",
+                     f"{start[k]:.2f}"])
+    rows.append(["mass (kg)", f"{weight:.2f}" if weight else _estimate(res, "mass", 1.0),
+                 f"{res.measurement.mass_kg:.2f}",
+                 f"{(res.measurement.mass_kg / weight - 1) * 100:+.2f} %" if weight else "",
+                 f"{res.start.mass_kg:.2f}"])
+    return rows
