@@ -54,7 +54,7 @@ def bust_band(mesh, verts, breasts):
     steps = np.arange(1, 151) * 0.001
     if _apart(mesh, y):
         top = y
-        for d in steps:
+        for d in steps[:30]:  # at most 3 cm above the bust points
             if not _apart(mesh, y + d):
                 break
             top = y + d

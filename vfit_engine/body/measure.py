@@ -5,17 +5,19 @@ Definitions (``definition=``), after ``shared/reference/MEASUREMENTS.md``:
 ``iso`` (default) - tailoring tape measures, ISO 8559-1 style
     * height: stature, max Y - min Y of the 13,380 body vertices.
     * bust (ISO 8559-1 / EN 13402-1 "bust girth", for men "chest girth"):
-      the largest torso tape girth over planes from the bust points up to just
-      under the armpits. A bust point is the most anterior point of the breast:
-      on each side the most anterior vertex of those the rig's breast bone skins
-      most; the band starts at their mean height (10 um below it, off their
-      vertex row). It ends at the last plane, in 1 mm steps up from there, whose
-      section still shows the torso and both arms apart (one loop spanning
-      x = 0 and another wholly on each side of it): a tape passes under the
-      arms. A woman's bust is then the girth at (or within millimetres of)
-      her bust points, a man's chest the girth under his armpits. Where the arms
-      have not separated from the torso even at the bust points (heavy bodies
-      with a low armpit) the band is the one plane just under the armpits.
+      the largest torso tape girth over planes from the bust points up to 3 cm
+      above them, at most just under the armpits. A bust point is the most
+      anterior point of the breast: on each side the most anterior vertex of
+      those the rig's breast bone skins most; the band starts at their mean
+      height (10 um below it, off their vertex row). It ends 3 cm higher or,
+      lower, at the last plane, in 1 mm steps up from there, whose section still
+      shows the torso and both arms apart (one loop spanning x = 0 and another
+      wholly on each side of it). A woman's bust is then the girth at (or within
+      millimetres of) her bust points, a man's chest the girth across his chest
+      (ISO's under the armpits would take in a shirt's armholes in the fit
+      table's garment loop: docs/MEASUREMENTS.md). Where the arms have not
+      separated from the torso even at the bust points (heavy bodies with a low
+      armpit) the band is the one plane just under the armpits.
     * underbust (ISO 8559-1 "underbust girth", just below the breasts): the
       smallest torso tape girth within +-2 cm of the mean height of the
       underbust ruler's vertices, the band kept at least 1 cm below the bust
@@ -69,6 +71,9 @@ _BANDS = {
 UNDERBUST_GAP, UNDERBUST_MIN_BAND = 0.01, 0.04
 #: the bust band starts this far below the bust points' mean height (m), off their vertex row
 BUST_PLANE_OFFSET = 1e-5
+#: and reaches at most this far above them (m): a man's chest is taken across his chest, not up under the
+#: armpits where a shirt's sleeves join it (module docstring)
+BUST_BAND_ABOVE = 0.03
 #: the armpit search: how far it looks from the bust points, its coarse step and its final step (m)
 ARMPIT_SEARCH, ARMPIT_COARSE, ARMPIT_STEP = 0.15, 0.01, 0.001
 PLANE_STEP = 0.001  # m
@@ -173,7 +178,7 @@ class Measurer:
         points = np.array([idx[np.argmax(verts[idx, 2])] for idx in self.breasts])
         y = float(verts[points, 1].mean()) - BUST_PLANE_OFFSET
         if self._apart(verts, y):
-            return y, self._last_apart(verts, y, +1), points
+            return y, min(self._last_apart(verts, y, +1), y + BUST_BAND_ABOVE), points
         y = self._last_apart(verts, y, -1, want=True)  # the arms join the torso here: go down to the armpit
         return y, y, points[:0]
 
