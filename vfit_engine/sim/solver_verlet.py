@@ -148,7 +148,7 @@ class SolverVerlet:
         self._k_inv_mass = np.ascontiguousarray(self._inv_mass[self._order])
         self._x, self._xp = np.zeros((n, 3)), np.zeros((n, 3))
         self._k_pins = np.ascontiguousarray(self._rank[model.pin_indices])
-        self._counts = np.zeros((3, 4), dtype=np.int64)
+        self._counts = np.zeros((3, 5), dtype=np.int64)
         self._build_constraints()
         self.points = points if points is not None else contact_points(np.zeros(0, np.int64), np.zeros(1, np.int64),
                                                                        model.rest_pos, surface=False)
@@ -157,8 +157,9 @@ class SolverVerlet:
         self._pin_from = np.zeros((model.pin_count, 3))
         self._const_dt = None
         self._f = np.zeros((n, 3))
-        self._h_lam = np.zeros(0 if model.hinges is None else model.hinges.count)
-        self._h_explicit = np.zeros(self._h_lam.size, dtype=bool)
+        # the hinge constraints' multipliers and active list (_prepare sizes them)
+        self._h_lam, self._h_active = np.zeros(0), np.zeros(0, np.int64)
+        self._h_explicit = np.zeros(0 if model.hinges is None else model.hinges.count, dtype=bool)
 
     # -- set-up -------------------------------------------------------------------------
     def _build_constraints(self):
@@ -425,9 +426,13 @@ class SolverVerlet:
             hi, rest = m.hinges.indices, m.hinges.rest_angle
         else:
             hi, rest = np.zeros((0, 4), np.int64), np.zeros(0)
-        self._explicit_hinges = (hi, hk, hkd, rest)
-        h_order, h_seg = segments(segment_of(self._half, *hi.T)) if hi.size else (np.zeros(0, np.int64),
-                                                                                   np.zeros(4, np.int64))
+        force = np.flatnonzero((hk > 0) | (hkd > 0))  # the hinges that act as forces, and the constraints
+        held = np.flatnonzero(h_alpha > 0)
+        self._explicit_hinges = (hi[force], hk[force], hkd[force], rest[force])
+        h_order, h_seg = self._hinge_segments(hi, force)
+        hc_order, hc_seg = self._hinge_segments(hi, held)
+        if self._h_lam.size != held.size:
+            self._h_lam, self._h_active = np.zeros(held.size), np.zeros(held.size, np.int64)
 
         def arr(a, order):
             return np.ascontiguousarray(a[order])
@@ -439,9 +444,17 @@ class SolverVerlet:
             arr(self._c_relax, c_order), arr(np.where(corner >= 0, rank[np.maximum(corner, 0)], -1), c_order),
             arr(np.cos(self._t_lo), c_order), arr(np.cos(self._t_hi), c_order),
             arr(self._c_kind == KIND_SHEAR, c_order), sp_seg, c_seg, arr(rank[hi], h_order), arr(hk, h_order),
-            arr(hkd, h_order), arr(rest, h_order), h_seg, arr(h_alpha, h_order))
+            arr(hkd, h_order), arr(rest, h_order), h_seg, arr(rank[hi], hc_order), arr(h_alpha, hc_order),
+            arr(rest, hc_order), hc_seg)
         self._c_air = 1.0 - math.exp(-self.settings.air_damping * dt)
         self._const_dt = dt
+
+    def _hinge_segments(self, hinge_indices, chosen):
+        """The hinges ``chosen`` (k,) int64 in the kernel's segment order, and the segments' bounds (4,)."""
+        if not chosen.size:
+            return chosen, np.zeros(4, np.int64)
+        order, seg = segments(segment_of(self._half, *hinge_indices[chosen].T))
+        return chosen[order], seg
 
     # -- state ----------------------------------------------------------------------------
     def init_state(self, dt, pos=None, vel=None):
@@ -505,11 +518,11 @@ class SolverVerlet:
         c = self.contact
         prm = StepParams(dt, self._c_air, int(self.settings.iterations), float(c.reach), float(c.friction),
                          float(self.max_push), 1.0 - math.exp(-float(c.damping) * dt), float(c.reuse),
-                         self.body is not None)
+                         self.body is not None, int(self.settings.hinge_every))
         pts = ContactPoints(self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._p_seg)
         cst = ContactState(self._p_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_list, self._push,
                            self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2, self._c_live,
-                           self._counts, self._hot, self._h_lam)
+                           self._counts, self._hot, self._h_lam, self._h_active)
         x, xp = self._x, self._xp
         np.take(state.pos, self._order, axis=0, out=x)
         np.take(state.pos_prev, self._order, axis=0, out=xp)
