@@ -28,7 +28,7 @@ class VerletSettings:
         Limit on the bend pairs (second neighbours): they may shorten freely (the cloth folds) but not
         lengthen by more than this without resistance, so folds modelled into the garment -- a turned
         hem, a collar, a lapel -- do not open out; beyond it they resist compliantly
-        (:data:`vfit_engine.sim.solver_verlet.BEND_LIMIT_SOFTNESS`). None: bend springs only.
+        (:data:`vfit_engine.sim.constraints.BEND_LIMIT_SOFTNESS`). None: bend springs only.
     shear_limit_deg : float or None
         Polygon corner angles change by at most this (Provot's shear limit, as angle constraints on
         ``Model.corners``). None: no shear limit, and the shear springs act as explicit springs.
