@@ -1,0 +1,260 @@
+"""Numba kernels of the moving body's grid (:class:`vfit_engine.collide.moving_body.MovingBodyCollider`).
+
+The body moves from pose ``v0`` to pose ``v1`` over one interval (an animation frame), every vertex on the
+straight line between them. One grid answers exact queries at any time of the interval:
+
+1. :func:`bin_swept`: a triangle is listed in every cell whose centre comes within ``reach`` of it at *some*
+   time of the interval. The interval is cut into ``q`` pieces so that no vertex moves more than ``piece`` in
+   one; the triangle at a piece's middle, grown by ``reach`` plus half that move, holds every position of the
+   piece (a point of a triangle is a convex combination of its corners, so it moves at most as far as they
+   do), and each cell keeps the piece whose lower bound on the distance is smallest. A slow triangle (the
+   torso) is binned once, a fast one (a swinging foot) along its path, never in a ball round it.
+2. :func:`.collide_mesh_build.cell_lists` groups the pairs by cell (unchanged).
+3. :func:`carry_signs`: the side of the body each empty cell's centre is on. An empty cell has no surface
+   within ``reach`` of its centre during the interval, so its side does not change in it; a cell empty in the
+   last interval too keeps its side, the others take it from an empty 6-neighbour (two adjacent empty
+   cells share a side: the segment between their centres stays inside them, which no surface touches);
+   a cell none reaches is left for an exact query.
+4. :func:`pose_records`: the triangles' records at a time of the interval, per substep.
+
+Numba's cache watches only this file: after editing the helpers inlined from
+:mod:`.collide_mesh_build`, delete ``vfit_engine/kernels/__pycache__``.
+"""
+import math
+
+import numpy as np
+
+from vfit_engine._jit import njit
+from vfit_engine.kernels.collide_mesh_build import LEVELS, _bin_triangle, _normalise_rows
+
+
+@njit
+def bin_swept(v0, v1, tris, origin, dims, h, reach, piece, stamp, slot, pair_cell_out, pair_tri_out,
+              pair_level_out):
+    """Every (cell, triangle) pair whose cell centre comes within ``reach`` (m) of the triangle while its
+    corners move from ``v0`` to ``v1`` (module docstring, step 1).
+
+    Parameters
+    ----------
+    v0, v1 : (v, 3) float64, m
+        The vertices at the interval's start and end.
+    tris : (t, 3) int64
+    origin : (3,) float64, m;  dims : (3,) int64;  h, reach, piece : float, m
+        Grid, band, and the longest move of a vertex within one piece.
+    stamp, slot : (ncells,) int32
+        Scratch: ``stamp`` must hold no triangle index (e.g. all -1) on entry; it is left so.
+    pair_cell_out, pair_tri_out : (cap,) int32;  pair_level_out : (cap,) uint8
+        As :func:`.collide_mesh_build.bin_triangles`; the level is that of a lower bound on the distance
+        over the whole interval, on ``LEVELS`` levels of ``(reach + piece / 2) / LEVELS``.
+
+    Returns
+    -------
+    int
+        Number of pairs (rerun with larger outputs if it exceeds ``cap``).
+    """
+    column = np.empty(dims[2])
+    per_level = LEVELS / (reach + 0.5 * piece)
+    stamp[:] = -1
+    no_stamp = stamp[:0]  # one piece: no cell can be met twice, and no stamp need be read
+    n = 0
+    for t in range(tris.shape[0]):
+        a, b, c = tris[t, 0], tris[t, 1], tris[t, 2]
+        move = 0.0
+        for v in (a, b, c):
+            move = max(move, math.sqrt((v1[v, 0] - v0[v, 0]) ** 2 + (v1[v, 1] - v0[v, 1]) ** 2
+                                       + (v1[v, 2] - v0[v, 2]) ** 2))
+        q = max(1, int(math.ceil(move / piece)))
+        half_move = 0.5 * move / q * (1.0 + 1e-9) + 1e-12  # a little over: the bound stays one
+        for j in range(q):
+            s = (j + 0.5) / q
+            n = _bin_triangle(v0[a, 0] + s * (v1[a, 0] - v0[a, 0]), v0[a, 1] + s * (v1[a, 1] - v0[a, 1]),
+                              v0[a, 2] + s * (v1[a, 2] - v0[a, 2]), v0[b, 0] + s * (v1[b, 0] - v0[b, 0]),
+                              v0[b, 1] + s * (v1[b, 1] - v0[b, 1]), v0[b, 2] + s * (v1[b, 2] - v0[b, 2]),
+                              v0[c, 0] + s * (v1[c, 0] - v0[c, 0]), v0[c, 1] + s * (v1[c, 1] - v0[c, 1]),
+                              v0[c, 2] + s * (v1[c, 2] - v0[c, 2]), t, origin, dims, h, reach + half_move,
+                              half_move, per_level, column, stamp if q > 1 else no_stamp, slot, pair_cell_out,
+                              pair_tri_out, pair_level_out, n)
+    return n
+
+
+@njit
+def carry_signs(dims, cell_start, was_listed, side, queue):
+    """The side (+1 outside, -1 inside) of every empty cell of a new interval (module docstring, step 3).
+
+    Parameters
+    ----------
+    dims : (3,) int64
+    cell_start : (ncells + 1,) int64
+        The new interval's lists (empty: ``cell_start[c] == cell_start[c + 1]``).
+    was_listed : (ncells,) bool
+        The cells listed in the last interval (their ``side`` is stale).
+    side : (ncells,) int8
+        In: each empty cell's side in the last interval; out: each empty cell's side in the new one, 0 for
+        an empty cell no empty neighbour reached (to be queried), anything for listed cells.
+    queue : (ncells,) int64
+        Scratch.
+
+    Returns
+    -------
+    int
+        The number of empty cells left at 0.
+    """
+    ncells = side.shape[0]
+    todo = 0
+    for c in range(ncells):
+        if cell_start[c] == cell_start[c + 1] and was_listed[c]:
+            side[c] = 0
+            todo += 1
+    # inside first: a cell marked inside is searched until its closest triangle is found (exact, only slower),
+    # one marked outside is dismissed beyond reach; where a side could be either (near a cut of a partial
+    # surface), inside is the safe one
+    for want in (-1, 1):
+        if todo:
+            todo -= _flood(dims, cell_start, side, queue, want)
+    return todo
+
+
+@njit
+def _flood(dims, cell_start, side, queue, want):
+    """Give the empty cells at side 0 reachable from empty cells of side ``want`` that side, breadth first;
+    returns how many it gave."""
+    nx_, ny_, nz_ = dims[0], dims[1], dims[2]
+    slab = ny_ * nz_
+    n = 0
+    for c in range(side.shape[0]):
+        if cell_start[c] != cell_start[c + 1] or side[c] != want:
+            continue
+        i, j, k = c // slab, (c // nz_) % ny_, c % nz_
+        if ((i > 0 and _open(cell_start, side, c - slab)) or (i < nx_ - 1 and _open(cell_start, side, c + slab))
+                or (j > 0 and _open(cell_start, side, c - nz_)) or (j < ny_ - 1 and _open(cell_start, side, c + nz_))
+                or (k > 0 and _open(cell_start, side, c - 1)) or (k < nz_ - 1 and _open(cell_start, side, c + 1))):
+            queue[n] = c
+            n += 1
+    seeds = n
+    head = 0
+    while head < n:
+        c = queue[head]
+        head += 1
+        i, j, k = c // slab, (c // nz_) % ny_, c % nz_
+        for nb in range(6):
+            if nb == 0:
+                if i == 0:
+                    continue
+                d = c - slab
+            elif nb == 1:
+                if i == nx_ - 1:
+                    continue
+                d = c + slab
+            elif nb == 2:
+                if j == 0:
+                    continue
+                d = c - nz_
+            elif nb == 3:
+                if j == ny_ - 1:
+                    continue
+                d = c + nz_
+            elif nb == 4:
+                if k == 0:
+                    continue
+                d = c - 1
+            else:
+                if k == nz_ - 1:
+                    continue
+                d = c + 1
+            if _open(cell_start, side, d):
+                side[d] = want
+                queue[n] = d
+                n += 1
+    return n - seeds
+
+
+@njit(inline="always")
+def _open(cell_start, side, c):
+    """Cell ``c`` is empty and its side not yet known."""
+    return cell_start[c] == cell_start[c + 1] and side[c] == 0
+
+
+@njit
+def cell_bounds(cell_start, side, reach, lo_out, hi_out):
+    """Bounds of every cell centre's signed distance over the interval: none for a cell with triangles
+    (``-inf`` / ``inf``: the search finds its closest triangle), ``reach`` on its side for an empty one.
+
+    Parameters
+    ----------
+    cell_start : (ncells + 1,) int64;  side : (ncells,) int8;  reach : float, m
+    lo_out, hi_out : (ncells,) float64, m
+        :data:`.collide_mesh.BodyGrid`'s ``cell_sd`` and ``cell_sd_hi``.
+    """
+    for c in range(side.shape[0]):
+        if cell_start[c] != cell_start[c + 1]:
+            lo_out[c], hi_out[c] = -math.inf, math.inf
+        elif side[c] > 0:
+            lo_out[c], hi_out[c] = reach, math.inf
+        else:
+            lo_out[c], hi_out[c] = -math.inf, -reach
+
+
+@njit
+def pose_records(v0, v1, s, tris, verts_out, tri_data_out):
+    """The vertices at time ``s`` (0..1) of the interval, ``v0 + s (v1 - v0)``, into ``verts_out`` (v, 3) m,
+    and the triangles' records of :data:`.collide_mesh.BodyGrid` (bounding box, corners) into
+    ``tri_data_out`` (t, 16), triangles ``tris`` in the grid's order. Returns how far a vertex moved at most
+    from where ``verts_out`` had it (m)."""
+    moved = 0.0
+    for v in range(v0.shape[0]):
+        d2 = 0.0
+        for ax in range(3):
+            x = v0[v, ax] + s * (v1[v, ax] - v0[v, ax])
+            d2 += (x - verts_out[v, ax]) ** 2
+            verts_out[v, ax] = x
+        moved = max(moved, d2)
+    for t in range(tris.shape[0]):
+        for ax in range(3):
+            u, w, x = verts_out[tris[t, 0], ax], verts_out[tris[t, 1], ax], verts_out[tris[t, 2], ax]
+            tri_data_out[t, ax], tri_data_out[t, 3 + ax] = min(u, w, x), max(u, w, x)
+            tri_data_out[t, 6 + ax], tri_data_out[t, 9 + ax], tri_data_out[t, 12 + ax] = u, w, x
+    return math.sqrt(moved)
+
+
+@njit
+def corner_angles(verts, tris, angles_out):
+    """Each triangle corner's angle (rad) into ``angles_out`` (t, 3): the weights of the vertex pseudo-normals
+    (:func:`.collide_mesh_build.mesh_normals`), taken once per interval by :func:`pose_normals`."""
+    for t in range(tris.shape[0]):
+        for k in range(3):
+            v, a, b = tris[t, k], tris[t, (k + 1) % 3], tris[t, (k + 2) % 3]
+            ux, uy, uz = verts[a, 0] - verts[v, 0], verts[a, 1] - verts[v, 1], verts[a, 2] - verts[v, 2]
+            wx, wy, wz = verts[b, 0] - verts[v, 0], verts[b, 1] - verts[v, 1], verts[b, 2] - verts[v, 2]
+            cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+            angles_out[t, k] = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ux * wx + uy * wy + uz * wz)
+
+
+@njit
+def pose_normals(verts, tris, tri_edges, angles, tri_normals_out, edge_normals_out, vert_normals_out):
+    """Face normals and the edges' and vertices' pseudo-normals (Baerentzen & Aanaes 2005) of ``tris`` at
+    ``verts``, as :func:`.collide_mesh_build.mesh_normals` but with the corner ``angles`` (t, 3) given (from
+    the interval's start: a triangle barely changes shape within a frame, and the angles' arc tangents were
+    most of the cost). Vertices and edges of no triangle in ``tris`` get zero normals."""
+    edge_normals_out[:] = 0.0
+    vert_normals_out[:] = 0.0
+    for t in range(tris.shape[0]):
+        a, b, c = tris[t, 0], tris[t, 1], tris[t, 2]
+        abx, aby, abz = verts[b, 0] - verts[a, 0], verts[b, 1] - verts[a, 1], verts[b, 2] - verts[a, 2]
+        acx, acy, acz = verts[c, 0] - verts[a, 0], verts[c, 1] - verts[a, 1], verts[c, 2] - verts[a, 2]
+        nx, ny, nz = aby * acz - abz * acy, abz * acx - abx * acz, abx * acy - aby * acx
+        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if ln > 0.0:
+            nx, ny, nz = nx / ln, ny / ln, nz / ln
+        tri_normals_out[t, 0], tri_normals_out[t, 1], tri_normals_out[t, 2] = nx, ny, nz
+        for k in range(3):
+            v = tris[t, k]
+            w = angles[t, k]
+            vert_normals_out[v, 0] += w * nx
+            vert_normals_out[v, 1] += w * ny
+            vert_normals_out[v, 2] += w * nz
+            e = tri_edges[t, k]
+            edge_normals_out[e, 0] += nx
+            edge_normals_out[e, 1] += ny
+            edge_normals_out[e, 2] += nz
+    _normalise_rows(edge_normals_out)
+    _normalise_rows(vert_normals_out)
