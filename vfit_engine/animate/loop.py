@@ -113,17 +113,20 @@ def smoothstep(x):
 
 
 def pose_frames(poser, clip, settings):
-    """Bodies (f + 1, 13380, 3) and pins (f + 1, p, 3), m, of frames 0..f: the clip at ``k / fps``, blended."""
+    """Bodies (f + 1, 13380, 3) m, pins (f + 1, p, 3) m and the bones' skinning matrices (f + 1, b, 3, 4) of
+    frames 0..f: the clip at ``k / fps``, blended in."""
     n = int(settings.frames) + 1
-    bodies, pins = [], []
+    bodies, pins, mats = [], [], []
     for k in range(n):
         t = k / settings.fps
         w = smoothstep(t / settings.blend_s) if settings.blend_s > 0 else 1.0
         rot, root = clip.sample(t, blend=w)
-        b, p = poser.pose(rot, root)
+        m = poser.matrices(rot, root)
+        b, p = poser.skin_all(m)
         bodies.append(b)
         pins.append(p)
-    return np.stack(bodies), np.stack(pins)
+        mats.append(m)
+    return np.stack(bodies), np.stack(pins), np.stack(mats)
 
 
 def near_triangles(body_verts, tris, cloth, near):
@@ -167,17 +170,17 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
 
     st = settings or AnimateSettings()
     dst = drape_settings or DrapeSettings()
-    timings = dict(posing=0.0, collision=0.0, cloth=0.0, figures=0.0)
+    timings = dict(setup=0.0, posing=0.0, collision=0.0, cloth=0.0, figures=0.0)
     t0 = time.perf_counter()
     rest_pos = np.ascontiguousarray(rest_pos, dtype=np.float64)
     pins = setup.pins.indices
     poser = Poser(model, setup.body.verts, pin_points=rest_pos[pins] if pins.size else None, method=st.skinning)
-    bodies, pin_pos = pose_frames(poser, clip, st)
-    timings["posing"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    body = _Body(setup, model, bodies, rest_pos, st, dst)
+    t1 = time.perf_counter()
+    bodies, pin_pos, mats = pose_frames(poser, clip, st)
+    timings["posing"] = time.perf_counter() - t1
+    body = _Body(setup, model, bodies, mats, rest_pos, st, dst)
     moving = dataclasses.replace(setup, collider=body.collider) if st.collider == "mesh" else \
-        dataclasses.replace(setup, collider_kind="spheres", spheres=body.spheres(0, 0.0))
+        dataclasses.replace(setup, collider_kind="spheres", spheres=body.spheres.at(0, 0.0))
     _, solver = build_solver(moving, dst)
     sub_dt = 1.0 / (dst.fps * dst.solver.substeps)
     substeps = max(int(round(1.0 / (st.fps * sub_dt))), 1)
@@ -186,7 +189,7 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     frame_dt = substeps * sub_dt
     state = solver.init_state(sub_dt, pos=rest_pos)
     solver.max_push = st.max_push
-    timings["collision"] += time.perf_counter() - t0
+    timings["setup"] = time.perf_counter() - t0 - timings["posing"]
     figures = [frame_figures(setup, body, rest_pos)]
     if on_frame is not None:
         on_frame(0, bodies[0], rest_pos, figures[0])
@@ -194,7 +197,8 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     step = np.zeros(len(rest_pos))
     for k in range(1, int(st.frames) + 1):
         t0 = time.perf_counter()
-        body.advance(k)
+        if body.spheres is None:
+            body.advance(k)
         timings["collision"] += time.perf_counter() - t0
         for c in range(chunks):
             s = (c + 1) / chunks
@@ -214,6 +218,9 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
                                 frame=k, last_good=last_good.copy(), last_good_frame=k - 1)
         np.copyto(last_good, state.pos)
         t0 = time.perf_counter()
+        if body.spheres is not None:  # the exact body is still what each frame is judged against
+            body.advance(k)
+            body.collider.at(1.0)
         figures.append(frame_figures(setup, body, state.pos))
         timings["figures"] += time.perf_counter() - t0
         if on_frame is not None:
@@ -256,6 +263,7 @@ def frame_figures(setup, body, pos):
     from vfit_engine.fit.maps import CONTACT_MM, contact_pressure
 
     mesh = setup.garment.mesh
+    body.metrics_collider.settle_bounds()  # exact centre distances now: points clear of the body are dismissed
     out = surface_penetration(body.metrics_collider, pos, mesh.triangles())
     strain = yarn_strain(mesh, pos)
     d, _, normal, tri = body.metrics_collider.query(pos, max_out=CONTACT_MM / 1000.0, max_in=np.inf)
@@ -272,15 +280,14 @@ def frame_figures(setup, body, pos):
 
 
 class _Body:
-    """The moving body as the loop needs it: the collider of each frame and substep, and what the figures
-    query."""
+    """The moving body as the loop needs it: the exact collider (moved every substep, or only at each frame's
+    end to judge it when the cloth meets spheres) and the sphere colliders along the bones."""
 
-    def __init__(self, setup, model, bodies, rest_pos, st, dst):
+    def __init__(self, setup, model, bodies, mats, rest_pos, st, dst):
         from vfit_engine.collide.moving_body import MovingBodyCollider
 
         self.bodies, self.st = bodies, st
         self.tris = model.body_tris
-        self.frame = 0
         self.time = 0.0
         self.last_pos = None
         self.settle_step = dst.settle_step
@@ -288,38 +295,71 @@ class _Body:
         active = near_triangles(bodies[0], self.tris, rest_pos, st.near)
         self.collider = MovingBodyCollider(bodies[0], self.tris, box=(lo, hi), active=active)
         self.metrics_collider = self.collider
-        self._spheres = None
-        if st.collider != "mesh":
-            self._spheres = _BoneSpheres(setup, model, dst)
+        self.spheres = None if st.collider == "mesh" else BoneSpheres(setup.body, model, mats, dst)
 
     def advance(self, k):
         self.collider.advance(self.bodies[k])
-        self.frame = k
 
     def at(self, k, s):
         """Put the body at time ``s`` of frame ``k``: (how far it moved at most (m), sphere colliders or None)."""
-        self.collider.at(s)
         self.time = (k - 1 + s) / self.st.fps
-        spheres = None if self._spheres is None else self.spheres(k, s)
-        return self.collider.moved, spheres
-
-    def spheres(self, k, s):
-        return self._spheres.at(k, s) if self._spheres is not None else None
+        if self.spheres is not None:
+            return 0.0, self.spheres.at(k, s)
+        self.collider.at(s)
+        return self.collider.motion_bound, None
 
     def describe(self):
         c = self.collider
-        return dict(kind=self.st.collider, near_m=self.st.near, active_triangles=int(c.active.sum()),
-                    triangles=int(len(c.active)), cell_m=c.cell, margin_m=c.margin, piece_m=c.piece,
-                    grid_cells=int(c.ncells), pairs_last_frame=int(c.grid.cell_tris.size),
-                    side_queries=int(c.queried_sides),
-                    seconds=dict((k, round(v, 4)) for k, v in c.timings.items()))
+        out = dict(kind=self.st.collider, near_m=self.st.near, active_triangles=int(c.active.sum()),
+                   triangles=int(len(c.active)), cell_m=c.cell, margin_m=c.margin, piece_m=c.piece,
+                   grid_cells=int(c.ncells), pairs_last_frame=int(c.grid.cell_tris.size),
+                   side_queries=int(c.queried_sides), seconds={k: round(v, 4) for k, v in c.timings.items()})
+        if self.spheres is not None:
+            out["spheres"] = int(len(self.spheres.radii))
+        return out
 
 
-class _BoneSpheres:
-    """Placeholder until the fitted colliders follow the bones."""
+class BoneSpheres:
+    """Spheres along the bones (:func:`vfit_engine.collide.bone_spheres.fit_bone_spheres`, fitted to the body at
+    rest) that follow their bones: each centre moves rigidly with its bone's skinning matrix, and between two
+    frames along the straight line.
 
-    def __init__(self, setup, model, dst):
-        raise InputError("the bone-spheres collider does not follow the bones yet; use --collider mesh")
+    Parameters
+    ----------
+    body : Body
+        The body at rest (with its helper vertices: the skeleton).
+    model : BodyModel
+    mats : (f + 1, b, 3, 4) float64
+        The bones' skinning matrices of every frame (:func:`pose_frames`).
+    dst : DrapeSettings
+        ``spheres_per_bone`` and ``sphere_skin``, as a drape's bone-spheres.
+    """
+
+    def __init__(self, body, model, mats, dst):
+        from vfit_engine.body.segment import bone_positions, seed_bones
+        from vfit_engine.collide.bone_spheres import MIN_BONE_LENGTH, fit_bone_spheres
+
+        if not body.has_helpers:
+            raise InputError("the bone-spheres collider needs the body's helper vertices (its skeleton): build the "
+                             "body from measurements instead of reading it from a file")
+        pos = bone_positions(model, body.verts)
+        names = [b for _part, bones in seed_bones(model).items() for b in bones
+                 if np.linalg.norm(np.subtract(pos[b][1], pos[b][0])) >= MIN_BONE_LENGTH]
+        centres, radii, bone_of = fit_bone_spheres(body.surface, model.body_tris, [pos[n] for n in names],
+                                                   per_bone=dst.spheres_per_bone)
+        index = {n: i for i, n in enumerate(model.bone_names)}
+        bone = np.array([index[names[i]] for i in bone_of], dtype=np.int64)
+        self.radii = np.asarray(radii, dtype=np.float64) * (1.0 + dst.sphere_skin)
+        m = mats[:, bone]  # (f + 1, s, 3, 4)
+        self.centres = np.einsum("fsij,sj->fsi", m[:, :, :, :3], centres) + m[:, :, :, 3]
+        self._out = np.empty((len(self.radii), 4))
+        self._out[:, 3] = self.radii
+
+    def at(self, k, s):
+        """(s, 4) the spheres (centre, radius; m) at time ``s`` of frame ``k``."""
+        c0 = self.centres[max(k - 1, 0)]
+        self._out[:, :3] = c0 + s * (self.centres[k] - c0)
+        return self._out.copy()
 
 
 def animate_garment(setup, clip, model, settings=None, drape_settings=None, on_drape_frame=None, on_frame=None):

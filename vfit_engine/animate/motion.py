@@ -236,9 +236,21 @@ def _retarget(model, motion, axes, rot):
         b = index.get(name)
         if b is None or j not in children or parent[b] < 0:
             continue
-        d_file = rest[children[j][0]] - rest[j]
-        head, tail = pos[name]
-        align[b] = _turn(np.asarray(tail) - np.asarray(head), d_file)
+        head, tail = (np.asarray(x, dtype=np.float64) for x in pos[name])
+        # a bone runs from its joint to a child joint, in the file and in the rig alike: the child that is a rig
+        # bone too, nearest the rig bone's tail (a spine's top joint has the neck and the shoulders as
+        # children); else the file's child nearest the rig bone's direction, against the rig bone itself
+        mapped = [c for c in children[j] if motion.names[c] in index]
+        if mapped:
+            c = min(mapped, key=lambda c: float(np.linalg.norm(np.asarray(pos[motion.names[c]][0]) - tail)))
+            d_rig = np.asarray(pos[motion.names[c]][0]) - head
+        else:
+            d_rig = tail - head
+            c = max(children[j], key=lambda c: float((rest[c] - rest[j]) @ d_rig)
+                    / max(float(np.linalg.norm(rest[c] - rest[j])), 1e-300))
+        d_file = rest[c] - rest[j]
+        if np.linalg.norm(d_file) > 0 and np.linalg.norm(d_rig) > 0:
+            align[b] = _turn(d_rig, d_file)
     out = np.empty_like(rot)
     glob = np.empty((len(model.bone_names), 3, 3))
     file_glob = np.empty_like(glob)
@@ -344,7 +356,10 @@ class Poser:
 
     def pose(self, rotations, root=None):
         """((13380, 3) body, (p, 3) pins) m, posed; the body array is a new copy."""
-        mats = self.matrices(rotations, root)
+        return self.skin_all(self.matrices(rotations, root))
+
+    def skin_all(self, mats):
+        """((13380, 3) body, (p, 3) pins) m skinned by the matrices ``mats`` (:meth:`matrices`)."""
         body = self.skin.deform(self.rest, mats, method=self.method, out=np.empty_like(self.rest))
         pins = (self.pin_skin.deform(self.pin_rest, mats, method=self.method) if self.pin_skin is not None
                 else np.zeros((0, 3)))

@@ -20,10 +20,11 @@ FRAME_KEYS = ("time_s", "surface_inside_percent", "surface_max_depth_mm", "surfa
 GIF_FRAMES = 90
 
 
-def quality(figures):
-    """The frames that miss a quality bar (module docstring): dict ``passed``, ``failed_frames`` (frame, why)."""
+def quality(figures, first=1):
+    """The frames from ``first`` on that miss a quality bar (module docstring): dict ``passed``,
+    ``failed_frames`` (frame, why), ``bars``."""
     failed = []
-    for k, f in enumerate(figures):
+    for k, f in enumerate(figures[first:], start=first):
         why = []
         if f["surface_max_depth_mm"] > MAX_DEPTH_MM:
             why.append(f"surface {f['surface_max_depth_mm']:.2f} mm deep")
@@ -61,7 +62,7 @@ def animation_report(drape, anim, settings, **context):
                           cloth=ms["cloth"], figures=ms["figures"]),
         collision_share=round(t["collision"] / sim, 4) if sim > 0 else 0.0,
         frames_per_second_wall=round(n / sim, 2) if sim > 0 else None,
-        maxima=maxima, quality=quality(figures[1:]), frame_figures=rows,
+        maxima=maxima, quality=quality(figures), frame_figures=rows,
         units=dict(mesh="m", time="s", depth="mm", strain="fraction", pressure="kPa", ms_per_frame="ms"))
 
 

@@ -34,11 +34,11 @@ from vfit_engine.collide.body_mesh import _as_points, _morton_order, _pair_estim
 from vfit_engine.errors import InputError
 
 #: Cell edge of the automatic grid: the mean triangle edge (as the still body's).
-_CELL_PER_EDGE = 1.0
+_CELL_PER_EDGE = 1.4
 #: The exact band of a cell, in cells: a point's own cell answers it within ``margin`` of the surface
 #: (:data:`vfit_engine.kernels.collide_mesh.BodyGrid`); smaller than the still body's 2 cells, since the lists
 #: are made every frame (``benchmarks/bench_moving_body.py``).
-MARGIN_PER_CELL = 0.5
+MARGIN_PER_CELL = 0.7
 #: Longest move of a vertex within one piece of the binning, in cells.
 PIECE_PER_CELL = 1.0
 
@@ -125,10 +125,19 @@ class MovingBodyCollider:
         self._grid_tri_edges = np.ascontiguousarray(tri_edges[order])
         nt = tris.shape[0]
         self._angles = np.empty((nt, 3))
+        self._tri_move = np.zeros(nt)
         self._tri_data, self._tri_normals = np.zeros((nt, 16)), np.empty((nt, 3))
         self._edge_normals, self._vert_normals = np.empty((edge_count, 3)), np.empty_like(verts)
         self.verts = verts.copy()
         self._v0, self._v1 = verts.copy(), verts.copy()
+        self._verts_used = np.ascontiguousarray(np.unique(tris), dtype=np.int64)
+        # a coarse field of how far the surface moved in the last step: a cell's value covers every point
+        # within ``field_cell`` of it (its 26 neighbours are in it), more than a contact point's reach plus
+        # a triangle (SolverVerlet.body_moved looks points up in it)
+        longest = float(max(np.linalg.norm(u - w, axis=1).max() for u, w in ((b, a), (c, b), (a, c))))
+        self.field_cell = longest + 0.04
+        self._field = np.zeros(tuple(np.maximum(np.ceil(self.dims * h / self.field_cell).astype(int), 1)))
+        self._field_max = np.zeros_like(self._field)
         # per cell: the side of an empty cell's centre (+1 / -1), whether the last interval listed it
         self._side = np.empty(ncells, dtype=np.int8)
         self._listed = np.zeros(ncells, dtype=np.bool_)
@@ -145,6 +154,7 @@ class MovingBodyCollider:
         self.intervals = 0
         self.queried_sides = 0
         self.s, self.moved = 0.0, 0.0
+        self._exact_at = None
         self._start(verts, all_tris)
 
     # ------------------------------------------------------------------ intervals
@@ -196,10 +206,13 @@ class MovingBodyCollider:
     def advance(self, verts_next):
         """Start the next interval: from the pose the last one ended at (or the first) to ``verts_next``.
 
-        Makes the interval's lists, carries the empty cells' sides and puts the geometry at the interval's
-        start (``s = 0``). Replaces :attr:`grid`.
+        Makes the interval's lists, carries the empty cells' sides, bounds the centre distances of the cells
+        near the surface over the interval and puts the geometry at the interval's start (``s = 0``).
+        Replaces :attr:`grid`.
         """
         import time
+
+        from vfit_engine.kernels import collide_mesh_sweep as S
 
         verts_next = _as_points(verts_next, "verts")
         if verts_next.shape != self._v1.shape:
@@ -215,6 +228,7 @@ class MovingBodyCollider:
         t0 = time.perf_counter()
         self._sides()
         self._bounds()
+        S.listed_bounds(self._grid, self._tri_move, self.reach, self._lo, self._hi)
         self.timings["sides"] += time.perf_counter() - t0
         self.intervals += 1
 
@@ -233,7 +247,7 @@ class MovingBodyCollider:
                                np.empty(self._cap, np.uint8), np.empty(self._cap, np.uint8))
             cell, tri, level, scratch = self._pairs
             n = S.bin_swept(v0, v1, self._grid_tris, self.origin, self.dims, self.cell, self.reach, self.piece,
-                            self._stamp, self._slot, cell, tri, level)
+                            self._stamp, self._slot, cell, tri, level, self._tri_move)
             if n <= cell.size:
                 break
             self._cap = int(1.2 * n)
@@ -273,6 +287,7 @@ class MovingBodyCollider:
         from vfit_engine.kernels import collide_mesh_sweep as S
 
         S.cell_bounds(self._cell_start, self._side, self.reach, self._lo, self._hi)
+        self._exact_at = None
 
     # ------------------------------------------------------------------ substeps
     def _geometry(self, s):
@@ -291,11 +306,37 @@ class MovingBodyCollider:
 
         t0 = time.perf_counter()
         s = float(min(max(s, 0.0), 1.0))
-        self.moved = S.pose_records(self._v0, self._v1, s, self._grid_tris, self.verts, self._tri_data)
+        if self._exact_at is not None:  # the exact centre distances held at one time only
+            self._bounds()
+            self._exact_at = None
+        self.moved = S.pose_records(self._v0, self._v1, s, self._verts_used, self._grid_tris, self.verts,
+                                    self._tri_data, self.origin, self.field_cell, self._field)
+        S.dilate_max(self._field, self._field_max)
         S.pose_normals(self.verts, self._grid_tris, self._grid_tri_edges, self._angles, self._tri_normals,
                        self._edge_normals, self._vert_normals)
         self.s = s
         self.timings["pose"] += time.perf_counter() - t0
+
+    def motion_bound(self, points):
+        """(k,) m: how far the surface within ``field_cell`` of each of ``points`` (k, 3) m moved at most in the
+        last :meth:`at` (the largest move anywhere for points off the grid)."""
+        p = np.asarray(points, dtype=np.float64)
+        idx = np.floor((p - self.origin) / self.field_cell).astype(np.int64)
+        shape = np.array(self._field_max.shape)
+        inside = np.all((idx >= 0) & (idx < shape), axis=1)
+        out = np.full(len(p), self.moved)
+        i = idx[inside]
+        out[inside] = self._field_max[i[:, 0], i[:, 1], i[:, 2]]
+        return out
+
+    def settle_bounds(self):
+        """Exact centre distances for the cells with triangles, at the surface's current time (m): queries then
+        dismiss points well clear of (or deep in) the body as a still body's grid does. Valid until the
+        surface moves again (the next :meth:`at` or :meth:`advance`, which put the interval's bounds back)."""
+        from vfit_engine.kernels import collide_mesh_sweep as S
+
+        S.listed_centre_sd(self._grid, self.reach, self._lo, self._hi)
+        self._exact_at = self.s
 
     @property
     def grid(self):

@@ -25,12 +25,13 @@ import math
 import numpy as np
 
 from vfit_engine._jit import njit
+from vfit_engine.kernels.collide_mesh import _closest_on_triangle, _signed_result
 from vfit_engine.kernels.collide_mesh_build import LEVELS, _bin_triangle, _normalise_rows
 
 
 @njit
 def bin_swept(v0, v1, tris, origin, dims, h, reach, piece, stamp, slot, pair_cell_out, pair_tri_out,
-              pair_level_out):
+              pair_level_out, tri_move_out):
     """Every (cell, triangle) pair whose cell centre comes within ``reach`` (m) of the triangle while its
     corners move from ``v0`` to ``v1`` (module docstring, step 1).
 
@@ -46,6 +47,8 @@ def bin_swept(v0, v1, tris, origin, dims, h, reach, piece, stamp, slot, pair_cel
     pair_cell_out, pair_tri_out : (cap,) int32;  pair_level_out : (cap,) uint8
         As :func:`.collide_mesh_build.bin_triangles`; the level is that of a lower bound on the distance
         over the whole interval, on ``LEVELS`` levels of ``(reach + piece / 2) / LEVELS``.
+    tri_move_out : (t,) float64, m
+        The longest move of each triangle's corners over the interval.
 
     Returns
     -------
@@ -63,6 +66,7 @@ def bin_swept(v0, v1, tris, origin, dims, h, reach, piece, stamp, slot, pair_cel
         for v in (a, b, c):
             move = max(move, math.sqrt((v1[v, 0] - v0[v, 0]) ** 2 + (v1[v, 1] - v0[v, 1]) ** 2
                                        + (v1[v, 2] - v0[v, 2]) ** 2))
+        tri_move_out[t] = move
         q = max(1, int(math.ceil(move / piece)))
         half_move = 0.5 * move / q * (1.0 + 1e-9) + 1e-12  # a little over: the bound stays one
         for j in range(q):
@@ -195,25 +199,75 @@ def cell_bounds(cell_start, side, reach, lo_out, hi_out):
 
 
 @njit
-def pose_records(v0, v1, s, tris, verts_out, tri_data_out):
-    """The vertices at time ``s`` (0..1) of the interval, ``v0 + s (v1 - v0)``, into ``verts_out`` (v, 3) m,
-    and the triangles' records of :data:`.collide_mesh.BodyGrid` (bounding box, corners) into
-    ``tri_data_out`` (t, 16), triangles ``tris`` in the grid's order. Returns how far a vertex moved at most
-    from where ``verts_out`` had it (m)."""
+def pose_records(v0, v1, s, verts, tris, verts_out, tri_data_out, f_origin, f_h, field_out):
+    """The vertices ``verts`` (k,) at time ``s`` (0..1) of the interval, ``v0 + s (v1 - v0)``, into ``verts_out``
+    (v, 3) m, and the triangles' records of :data:`.collide_mesh.BodyGrid` (bounding box, corners) into
+    ``tri_data_out`` (t, 16), triangles ``tris`` in the grid's order.
+
+    How far each vertex moved from where ``verts_out`` had it goes into a coarse grid of cells ``f_h`` (m) from
+    ``f_origin``: ``field_out`` (fx, fy, fz) holds the largest move of a vertex in each cell (zeroed first).
+    Returns the largest move of all (m)."""
+    field_out[:] = 0.0
+    fx, fy, fz = field_out.shape[0], field_out.shape[1], field_out.shape[2]
     moved = 0.0
-    for v in range(v0.shape[0]):
+    for m in range(verts.shape[0]):
+        v = verts[m]
         d2 = 0.0
         for ax in range(3):
             x = v0[v, ax] + s * (v1[v, ax] - v0[v, ax])
             d2 += (x - verts_out[v, ax]) ** 2
             verts_out[v, ax] = x
-        moved = max(moved, d2)
+        d = math.sqrt(d2)
+        moved = max(moved, d)
+        i = min(max(int((verts_out[v, 0] - f_origin[0]) / f_h), 0), fx - 1)
+        j = min(max(int((verts_out[v, 1] - f_origin[1]) / f_h), 0), fy - 1)
+        k = min(max(int((verts_out[v, 2] - f_origin[2]) / f_h), 0), fz - 1)
+        field_out[i, j, k] = max(field_out[i, j, k], d)
     for t in range(tris.shape[0]):
         for ax in range(3):
             u, w, x = verts_out[tris[t, 0], ax], verts_out[tris[t, 1], ax], verts_out[tris[t, 2], ax]
             tri_data_out[t, ax], tri_data_out[t, 3 + ax] = min(u, w, x), max(u, w, x)
             tri_data_out[t, 6 + ax], tri_data_out[t, 9 + ax], tri_data_out[t, 12 + ax] = u, w, x
-    return math.sqrt(moved)
+    return moved
+
+
+@njit
+def dilate_max(field, out):
+    """``out`` (fx, fy, fz): the largest value of ``field`` over each cell and its 26 neighbours."""
+    fx, fy, fz = field.shape[0], field.shape[1], field.shape[2]
+    for i in range(fx):
+        for j in range(fy):
+            for k in range(fz):
+                top = 0.0
+                for a in range(max(i - 1, 0), min(i + 2, fx)):
+                    for b in range(max(j - 1, 0), min(j + 2, fy)):
+                        for c in range(max(k - 1, 0), min(k + 2, fz)):
+                            top = max(top, field[a, b, c])
+                out[i, j, k] = top
+
+
+@njit
+def listed_bounds(grid, tri_move, reach, lo_out, hi_out):
+    """Bounds over the interval of the centre distances of the listed cells whose centre is within ``reach``
+    of the surface at its start (the geometry the grid holds; module docstring of :mod:`vfit_engine.collide.
+    moving_body`): with ``sd0`` the exact distance then and ``M`` the longest move of the cell's triangles
+    over the interval (``tri_move`` (t,) m, :func:`bin_swept`'s), the distance stays within ``sd0 +- M`` (its
+    side kept while ``|sd0| > M``); other cells are left as they are."""
+    listed_centre_sd(grid, reach, lo_out, hi_out)
+    cell_start, cell_tris = grid.cell_start, grid.cell_tris
+    for cc in range(cell_start.shape[0] - 1):
+        a, b = cell_start[cc], cell_start[cc + 1]
+        if a == b or not (lo_out[cc] == hi_out[cc]):
+            continue
+        top = 0.0
+        for s in range(a, b):
+            top = max(top, tri_move[cell_tris[s]])
+        top = top * (1.0 + 1e-9) + 1e-12
+        sd0 = lo_out[cc]
+        if abs(sd0) > top:
+            lo_out[cc], hi_out[cc] = sd0 - top, sd0 + top
+        else:
+            lo_out[cc], hi_out[cc] = -abs(sd0) - top, abs(sd0) + top
 
 
 @njit
@@ -258,3 +312,39 @@ def pose_normals(verts, tris, tri_edges, angles, tri_normals_out, edge_normals_o
             edge_normals_out[e, 2] += nz
     _normalise_rows(edge_normals_out)
     _normalise_rows(vert_normals_out)
+
+
+@njit
+def listed_centre_sd(grid, reach, lo_out, hi_out):
+    """The exact signed distance of every listed cell's centre at the grid's current geometry, into ``lo_out``
+    and ``hi_out`` (ncells,) m, where it is at most ``reach``: the closest triangle is then in the cell's list
+    (the list holds every triangle within ``reach`` at any time of the interval); the others are left as they
+    are. The list is ordered by lower bounds of the distances, so the scan stops at the first bound beyond the
+    best found."""
+    origin, h = grid.origin, grid.h
+    ny_, nz_ = grid.dims[1], grid.dims[2]
+    tri_data, cell_start, cell_tris, cell_tdist = grid.tri_data, grid.cell_start, grid.cell_tris, grid.cell_tdist
+    for cc in range(cell_start.shape[0] - 1):
+        a, b = cell_start[cc], cell_start[cc + 1]
+        if a == b:
+            continue
+        i = cc // (ny_ * nz_)
+        j = (cc // nz_) % ny_
+        k = cc % nz_
+        px, py, pz = origin[0] + (i + 0.5) * h, origin[1] + (j + 0.5) * h, origin[2] + (k + 0.5) * h
+        best2, best_t, best_f, bqx, bqy, bqz = reach * reach, -1, -1, np.nan, np.nan, np.nan
+        for s in range(a, b):
+            if cell_tdist[s] > 0.0 and cell_tdist[s] * cell_tdist[s] >= best2:
+                break
+            t = cell_tris[s]
+            qx, qy, qz, f = _closest_on_triangle(px, py, pz, tri_data[t, 6], tri_data[t, 7], tri_data[t, 8],
+                                                 tri_data[t, 9], tri_data[t, 10], tri_data[t, 11],
+                                                 tri_data[t, 12], tri_data[t, 13], tri_data[t, 14])
+            dd = (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
+            if dd <= best2:
+                best2, best_t, best_f, bqx, bqy, bqz = dd, t, f, qx, qy, qz
+        if best_t >= 0:
+            d = _signed_result(px, py, pz, bqx, bqy, bqz, best2, best_t, best_f, grid.tris, grid.tri_normals,
+                               grid.tri_edges, grid.edge_normals, grid.vert_normals)[0]
+            lo_out[cc] = d
+            hi_out[cc] = d
