@@ -118,7 +118,8 @@ def _animate(o):
 
     from vfit_engine.animate.loop import AnimateSettings, animate_garment
     from vfit_engine.animate.motion import load_clip
-    from vfit_engine.animate.outputs import animation_report, write_animation, write_preview_gif
+    from vfit_engine.animate.outputs import FRAME_KEYS, animation_report, write_animation, write_preview_gif
+    from vfit_engine.drape import DrapeDiverged
     from vfit_engine.body.bodyio import write_body
     from vfit_engine.body.model import BodyModel
     from vfit_engine.body.resolve import resolve_body
@@ -148,8 +149,8 @@ def _animate(o):
     written, bodies, cloth = [], [], []
     header = [f"vfit animate: {os.path.basename(o.garment)}, {os.path.basename(o.motion)}; metres, Y up"]
 
-    def save(k, body_verts, pos):
-        if o.every and k % o.every == 0:
+    def save(k, body_verts, pos, force=False):
+        if force or (o.every and k % o.every == 0):
             for name, mesh in ((f"frame_{k:04d}.obj", g.mesh.with_verts(pos)), (f"body_{k:04d}.obj", None)):
                 path = os.path.join(o.outdir, name)
                 if mesh is None:
@@ -161,18 +162,28 @@ def _animate(o):
     def on_drape_frame(frame, pos, moving):
         progress.frame(frame, moving, dst.max_frames)
 
-    def on_frame(k, body_verts, pos, fig):
+    def on_frame(k, body_verts, pos, fig, travel):
         if k == 0:
             progress.done()
             progress.stage(f"animating {o.frames} frames")
-        bodies.append(body_verts.copy())
-        cloth.append(pos.copy())
-        save(k, body_verts, pos)
+        bodies.append(body_verts + travel)
+        cloth.append(pos + travel)
+        save(k, bodies[-1], cloth[-1])
         progress.line(f"frame {k} of {o.frames}: skin through the cloth {fig['surface_max_depth_mm']:.1f} mm deep, "
                       f"strain p99 {100 * fig['p99_strain']:.1f} %", k)
 
-    drape, anim = animate_garment(setup, clip, model, settings, dst, on_drape_frame=on_drape_frame,
-                                  on_frame=on_frame)
+    try:
+        drape, anim = animate_garment(setup, clip, model, settings, dst, on_drape_frame=on_drape_frame,
+                                      on_frame=on_frame)
+    except DrapeDiverged as exc:  # keep the last good frame and say what the frames so far measured
+        progress.done()
+        if getattr(exc, "figures", None) is not None and cloth:
+            save(exc.last_good_frame, bodies[-1], cloth[-1], force=True)
+            write_json(os.path.join(o.outdir, "report.json"),
+                       dict(command="animate", garment=o.garment, diverged=dict(frame=exc.frame, message=str(exc)),
+                            frame_figures=[dict(frame=k, **{key: f[key] for key in FRAME_KEYS})
+                                           for k, f in enumerate(exc.figures)], outputs=written))
+        raise
     progress.done()
     progress.stage("writing animation.glb" + (" and preview.gif" if o.preview else ""))
     bodies, cloth = np.stack(bodies), np.stack(cloth)

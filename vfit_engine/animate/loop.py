@@ -49,6 +49,11 @@ class AnimateSettings:
     max_push : float, m
         Longest push out of the body per substep: the body moves the cloth by pushing it, up to this much
         each substep (a walking shin moves ~6 mm per substep of 1/480 s).
+    max_speed : float, m/s
+        Cloth faster than this after a body move is slowed to it (its previous position moved up): cloth
+        caught where the body closes on itself (the crease of a hip bent to sitting) is pushed from both
+        sides and, unchecked, runs away (tens of m/s). A walking foot moves ~5 m/s; the report counts the
+        vertices slowed in each frame.
     near : float, m
         The exact collider holds the body triangles within this of the draped garment.
     skinning : {"dqs", "lbs"}
@@ -60,6 +65,7 @@ class AnimateSettings:
     blend_s: float = 0.5
     body_every: int = 1
     max_push: float = 0.02
+    max_speed: float = 8.0
     near: float = 0.05
     skinning: str = "dqs"
     collider: str = "mesh"
@@ -113,28 +119,53 @@ def smoothstep(x):
 
 
 def pose_frames(poser, clip, settings):
-    """Bodies (f + 1, 13380, 3) m, pins (f + 1, p, 3) m and the bones' skinning matrices (f + 1, b, 3, 4) of
-    frames 0..f: the clip at ``k / fps``, blended in."""
+    """Bodies (f + 1, 13380, 3) m, pins (f + 1, p, 3) m, the bones' skinning matrices (f + 1, b, 3, 4) and the
+    travel (f + 1, 3) m of frames 0..f: the clip at ``k / fps``, blended in.
+
+    The root's vertical motion (a walk's bob) moves the body the cloth is simulated on; its horizontal path is
+    the travel, added to what is written: the cloth is simulated in the frame that moves along it, which for a
+    steady walk is the same physics (Galilean; the solver's air damping is numerical, not wind), and leaves out
+    the path's accelerations (starting, stopping, turning)."""
     n = int(settings.frames) + 1
-    bodies, pins, mats = [], [], []
+    bodies, pins, mats, travel = [], [], [], []
     for k in range(n):
         t = k / settings.fps
         w = smoothstep(t / settings.blend_s) if settings.blend_s > 0 else 1.0
         rot, root = clip.sample(t, blend=w)
-        m = poser.matrices(rot, root)
+        m = poser.matrices(rot, np.array([0.0, root[1], 0.0]))
         b, p = poser.skin_all(m)
         bodies.append(b)
         pins.append(p)
         mats.append(m)
-    return np.stack(bodies), np.stack(pins), np.stack(mats)
+        travel.append([root[0], 0.0, root[2]])
+    return np.stack(bodies), np.stack(pins), np.stack(mats), np.array(travel)
 
 
-def near_triangles(body_verts, tris, cloth, near):
-    """(t,) bool: the triangles with a corner within ``near`` (m) of a cloth vertex."""
+#: Body parts (:data:`vfit_engine.body.segment.PARTS`) of many small triangles: only their triangles near the
+#: garment collide; of the other parts, any the garment comes near collides whole.
+DETAIL_PARTS = ("head", "hand.L", "hand.R", "foot.L", "foot.R")
+
+
+def near_triangles(body_verts, tris, cloth, near, parts=None):
+    """(t,) bool: the triangles the garment at ``cloth`` collides with: those with a corner within ``near`` (m)
+    of a cloth vertex and, given the body ``parts`` ((v,) int, :func:`vfit_engine.body.segment.skin_parts`),
+    every triangle of a part (not one of :data:`DETAIL_PARTS`) that has such a triangle.
+
+    A part is taken whole because a moving part comes to the cloth where it was far at rest (a thigh rising
+    under a skirt as its wearer sits down); where a surface is cut open its inside and outside are not told
+    apart, and cloth there would be pushed the wrong way. The detail parts (head, hands, feet: 70 % of the
+    triangles) keep only their near triangles, cut where they are ``near`` from the cloth."""
     from scipy.spatial import cKDTree
 
     d, _ = cKDTree(cloth).query(body_verts, distance_upper_bound=near)
-    return np.isfinite(d)[tris].any(axis=1)
+    close = np.isfinite(d)[tris].any(axis=1)
+    if parts is None:
+        return close
+    from vfit_engine.body.segment import PARTS
+
+    part = np.asarray(parts)[tris[:, 0]]
+    whole = np.setdiff1d(np.unique(part[close]), [PARTS.index(p) for p in DETAIL_PARTS])
+    return close | np.isin(part, whole)
 
 
 def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=None, on_frame=None):
@@ -152,8 +183,9 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     drape_settings : DrapeSettings or None
         The drape's (solver, contacts, step).
     on_frame : callable or None
-        ``on_frame(k, body, pos, figures)`` for the rest drape (``k`` = 0) and after each frame (``body``
-        (13380, 3) and ``pos`` (n, 3) m are live arrays: copy them to keep them).
+        ``on_frame(k, body, pos, figures, travel)`` for the rest drape (``k`` = 0) and after each frame
+        (``body`` (13380, 3) and ``pos`` (n, 3) m are live arrays: copy them to keep them; ``travel`` (3,) m: the
+        horizontal path to add to them, :func:`pose_frames`).
 
     Returns
     -------
@@ -176,7 +208,7 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     pins = setup.pins.indices
     poser = Poser(model, setup.body.verts, pin_points=rest_pos[pins] if pins.size else None, method=st.skinning)
     t1 = time.perf_counter()
-    bodies, pin_pos, mats = pose_frames(poser, clip, st)
+    bodies, pin_pos, mats, travel = pose_frames(poser, clip, st)
     timings["posing"] = time.perf_counter() - t1
     body = _Body(setup, model, bodies, mats, rest_pos, st, dst)
     moving = dataclasses.replace(setup, collider=body.collider) if st.collider == "mesh" else \
@@ -191,8 +223,9 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     solver.max_push = st.max_push
     timings["setup"] = time.perf_counter() - t0 - timings["posing"]
     figures = [frame_figures(setup, body, rest_pos)]
+    figures[0]["slowed_vertices"] = 0
     if on_frame is not None:
-        on_frame(0, bodies[0], rest_pos, figures[0])
+        on_frame(0, bodies[0], rest_pos, figures[0], travel[0])
     last_good = rest_pos.copy()
     step = np.zeros(len(rest_pos))
     for k in range(1, int(st.frames) + 1):
@@ -200,6 +233,7 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
         if body.spheres is None:
             body.advance(k)
         timings["collision"] += time.perf_counter() - t0
+        slowed = 0
         for c in range(chunks):
             s = (c + 1) / chunks
             t0 = time.perf_counter()
@@ -209,27 +243,42 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
             if pins.size:
                 state.pin_target = pin_pos[k - 1] + s * (pin_pos[k] - pin_pos[k - 1])
             solver.step_frame(state, per_chunk * sub_dt, substeps=per_chunk)
+            slowed += _limit_speed(state, st.max_speed, step)
             timings["collision"] += t1 - t0
             timings["cloth"] += time.perf_counter() - t1
         speed = _fastest(state, step)
         if not (math.isfinite(speed) and speed <= dst.diverge_speed):
             what = "NaN/infinite positions" if not math.isfinite(speed) else f"a vertex at {speed:.3g} m/s"
-            raise DrapeDiverged(f"the animation diverged at frame {k} ({what}); last good frame {k - 1}",
+            exc = DrapeDiverged(f"the animation diverged at frame {k} ({what}); last good frame {k - 1}",
                                 frame=k, last_good=last_good.copy(), last_good_frame=k - 1)
+            exc.figures, exc.body = figures, bodies[k - 1]  # what the frames so far measured
+            raise exc
         np.copyto(last_good, state.pos)
         t0 = time.perf_counter()
         if body.spheres is not None:  # the exact body is still what each frame is judged against
             body.advance(k)
             body.collider.at(1.0)
         figures.append(frame_figures(setup, body, state.pos))
+        figures[-1]["slowed_vertices"] = slowed
         timings["figures"] += time.perf_counter() - t0
         if on_frame is not None:
-            on_frame(k, bodies[k], state.pos, figures[-1])
+            on_frame(k, bodies[k], state.pos, figures[-1], travel[k])
     timings["simulation"] = timings["posing"] + timings["collision"] + timings["cloth"]
     info = dict(substeps=substeps, substep_s=sub_dt, frame_s=frame_dt, body_moves_per_frame=chunks,
                 contact_queries=int(solver.contact_queries), collider=body.describe(), clip=clip.description)
     return AnimationResult(state.pos.copy(), int(st.frames), figures, timings, info,
                            _settled(clip, figures, st, dst))
+
+
+def _limit_speed(state, top, scratch):
+    """Slow the vertices faster than ``top`` (m/s) over the last substep to it; returns how many."""
+    d = state.pos - state.pos_prev
+    np.sqrt(np.einsum("ij,ij->i", d, d), out=scratch)
+    fast = scratch > top * state.dt
+    if not fast.any():
+        return 0
+    state.pos_prev[fast] = state.pos[fast] - d[fast] * (top * state.dt / scratch[fast])[:, None]
+    return int(np.count_nonzero(fast))
 
 
 def _fastest(state, scratch):
@@ -292,7 +341,7 @@ class _Body:
         self.last_pos = None
         self.settle_step = dst.settle_step
         lo, hi = bodies.reshape(-1, 3).min(axis=0), bodies.reshape(-1, 3).max(axis=0)
-        active = near_triangles(bodies[0], self.tris, rest_pos, st.near)
+        active = near_triangles(bodies[0], self.tris, rest_pos, st.near, setup.body_parts)
         self.collider = MovingBodyCollider(bodies[0], self.tris, box=(lo, hi), active=active)
         self.metrics_collider = self.collider
         self.spheres = None if st.collider == "mesh" else BoneSpheres(setup.body, model, mats, dst)

@@ -15,7 +15,7 @@ MAX_INSIDE_PERCENT = 1.0
 MAX_P99_STRAIN = 0.08
 #: The figures of each frame in ``report.json["frames"]``, in order.
 FRAME_KEYS = ("time_s", "surface_inside_percent", "surface_max_depth_mm", "surface_deeper_than_2mm", "p99_strain",
-              "max_strain", "pressure_max_kpa", "max_step_mm")
+              "max_strain", "pressure_max_kpa", "max_step_mm", "slowed_vertices")
 #: GIF: at most this many frames, evenly spread.
 GIF_FRAMES = 90
 
@@ -47,7 +47,7 @@ def animation_report(drape, anim, settings, **context):
     ms = {k: round(1000.0 * v / n, 2) for k, v in t.items()}
     figures = anim.figures
     rows = [dict(frame=k, **{key: _num(f[key]) for key in FRAME_KEYS}) for k, f in enumerate(figures)]
-    maxima = {key: _num(max(f[key] for f in figures[1:] or figures)) for key in FRAME_KEYS[1:-1]}
+    maxima = {key: _num(max(f[key] for f in figures[1:] or figures)) for key in FRAME_KEYS[1:-2]}
     sim = t["simulation"]
     return dict(
         command="animate", **context,
@@ -63,6 +63,7 @@ def animation_report(drape, anim, settings, **context):
         collision_share=round(t["collision"] / sim, 4) if sim > 0 else 0.0,
         frames_per_second_wall=round(n / sim, 2) if sim > 0 else None,
         maxima=maxima, quality=quality(figures), frame_figures=rows,
+        slowed_vertices=int(sum(f["slowed_vertices"] for f in figures)), max_speed_m_s=settings.max_speed,
         units=dict(mesh="m", time="s", depth="mm", strain="fraction", pressure="kPa", ms_per_frame="ms"))
 
 
