@@ -55,7 +55,11 @@ class AnimateSettings:
         sides and, unchecked, runs away (tens of m/s). A walking foot moves ~5 m/s; the report counts the
         vertices slowed in each frame.
     near : float, m
-        The exact collider holds the body triangles within this of the draped garment.
+        The exact collider holds the body parts within this of the draped garment (:func:`near_triangles`).
+    surface_spacing : float or None, m
+        Spacing of the contact points over the cloth's triangles while the body moves (None: the drape's,
+        15 mm): a moving body pushes the cloth between them more than a still one rests on it (the suit's
+        walk, 50 frames: 15 of 60 frames 2.0-2.9 mm deep at 15 mm, none over 1.43 mm at 10 mm).
     skinning : {"dqs", "lbs"}
     collider : {"mesh", "bone-spheres"}
     """
@@ -67,6 +71,7 @@ class AnimateSettings:
     max_push: float = 0.02
     max_speed: float = 8.0
     near: float = 0.05
+    surface_spacing: float | None = 0.010
     skinning: str = "dqs"
     collider: str = "mesh"
 
@@ -213,6 +218,8 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     body = _Body(setup, model, bodies, mats, rest_pos, st, dst)
     moving = dataclasses.replace(setup, collider=body.collider) if st.collider == "mesh" else \
         dataclasses.replace(setup, collider_kind="spheres", spheres=body.spheres.at(0, 0.0))
+    if st.surface_spacing is not None:
+        dst = dataclasses.replace(dst, surface_spacing=float(st.surface_spacing))
     _, solver = build_solver(moving, dst)
     sub_dt = 1.0 / (dst.fps * dst.solver.substeps)
     substeps = max(int(round(1.0 / (st.fps * sub_dt))), 1)
