@@ -118,7 +118,7 @@ def _animate(o):
 
     from vfit_engine.animate.loop import AnimateSettings, animate_garment
     from vfit_engine.animate.motion import load_clip
-    from vfit_engine.animate.outputs import FRAME_KEYS, animation_report, write_animation, write_preview_gif
+    from vfit_engine.animate.outputs import FRAME_KEYS, animation_report
     from vfit_engine.drape import DrapeDiverged
     from vfit_engine.body.bodyio import write_body
     from vfit_engine.body.model import BodyModel
@@ -186,14 +186,7 @@ def _animate(o):
         raise
     progress.done()
     progress.stage("writing animation.glb" + (" and preview.gif" if o.preview else ""))
-    bodies, cloth = np.stack(bodies), np.stack(cloth)
-    glb = os.path.join(o.outdir, "animation.glb")
-    write_animation(glb, setup, model, bodies, cloth, o.fps)
-    written.append(glb)
-    if o.preview:
-        gif = os.path.join(o.outdir, "preview.gif")
-        write_preview_gif(gif, setup, model, bodies, cloth, o.fps, anim.figures)
-        written.append(gif)
+    written += _write_animation(o, setup, model, np.stack(bodies), np.stack(cloth))
     context = dict(garment=o.garment, garment_vertices=g.mesh.n_verts, body=body.description, material=o.material,
                    travel=o.travel, outputs=written, total_time_s=round(time.perf_counter() - o.t_start, 3))
     report = animation_report(drape, anim, settings, **context)
@@ -204,6 +197,20 @@ def _animate(o):
         _summary(report)
         click.echo(f"wrote {len(written)} files and report.json in {o.outdir}")
     return 0
+
+
+def _write_animation(o, setup, model, bodies, cloth):
+    """``animation.glb`` and, asked for, ``preview.gif``; returns their paths."""
+    import os
+
+    from vfit_engine.animate.outputs import write_animation, write_preview_gif
+
+    paths = [os.path.join(o.outdir, "animation.glb")]
+    write_animation(paths[0], setup, model, bodies, cloth, o.fps)
+    if o.preview:
+        paths.append(os.path.join(o.outdir, "preview.gif"))
+        write_preview_gif(paths[1], setup, model, bodies, cloth, o.fps)
+    return paths
 
 
 def _summary(report):

@@ -236,23 +236,8 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     last_good = rest_pos.copy()
     step = np.zeros(len(rest_pos))
     for k in range(1, int(st.frames) + 1):
-        t0 = time.perf_counter()
-        if body.spheres is None:
-            body.advance(k)
-        timings["collision"] += time.perf_counter() - t0
-        slowed = 0
-        for c in range(chunks):
-            s = (c + 1) / chunks
-            t0 = time.perf_counter()
-            moved, spheres = body.at(k, s)
-            solver.body_moved(moved, spheres)
-            t1 = time.perf_counter()
-            if pins.size:
-                state.pin_target = pin_pos[k - 1] + s * (pin_pos[k] - pin_pos[k - 1])
-            solver.step_frame(state, per_chunk * sub_dt, substeps=per_chunk)
-            slowed += _limit_speed(state, st.max_speed, step)
-            timings["collision"] += t1 - t0
-            timings["cloth"] += time.perf_counter() - t1
+        slowed = _simulate_frame(k, body, solver, state, pin_pos if pins.size else None, chunks, per_chunk * sub_dt,
+                                 per_chunk, st.max_speed, step, timings)
         speed = _fastest(state, step)
         if not (math.isfinite(speed) and speed <= dst.diverge_speed):
             what = "NaN/infinite positions" if not math.isfinite(speed) else f"a vertex at {speed:.3g} m/s"
@@ -275,6 +260,29 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
                 contact_queries=int(solver.contact_queries), collider=body.describe(), clip=clip.description)
     return AnimationResult(state.pos.copy(), int(st.frames), figures, timings, info,
                            _settled(clip, figures, st, dst))
+
+
+def _simulate_frame(k, body, solver, state, pin_pos, chunks, chunk_dt, per_chunk, max_speed, scratch, timings):
+    """Frame ``k``: the body's grid for the frame, then ``chunks`` times the body moved on (and the pins with
+    it) and ``per_chunk`` substeps of the cloth; returns the vertices slowed to ``max_speed``."""
+    t0 = time.perf_counter()
+    if body.spheres is None:
+        body.advance(k)
+    timings["collision"] += time.perf_counter() - t0
+    slowed = 0
+    for c in range(chunks):
+        s = (c + 1) / chunks
+        t0 = time.perf_counter()
+        moved, spheres = body.at(k, s)
+        solver.body_moved(moved, spheres)
+        t1 = time.perf_counter()
+        if pin_pos is not None:
+            state.pin_target = pin_pos[k - 1] + s * (pin_pos[k] - pin_pos[k - 1])
+        solver.step_frame(state, chunk_dt, substeps=per_chunk)
+        slowed += _limit_speed(state, max_speed, scratch)
+        timings["collision"] += t1 - t0
+        timings["cloth"] += time.perf_counter() - t1
+    return slowed
 
 
 def _limit_speed(state, top, scratch):

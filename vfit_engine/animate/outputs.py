@@ -82,7 +82,7 @@ def write_animation(path, setup, model, bodies, cloth, fps):
     return write_animation_glb(path, parts, [np.asarray(bodies)[:, :N_BODY], np.asarray(cloth)], fps)
 
 
-def write_preview_gif(path, setup, model, bodies, cloth, fps, figures):
+def write_preview_gif(path, setup, model, bodies, cloth, fps):
     """``preview.gif``: the garment (coloured by yarn strain) on the moving body, from the front and the side,
     at most :data:`GIF_FRAMES` frames."""
     from vfit_engine.animation import write_gif
