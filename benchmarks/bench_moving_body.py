@@ -1,7 +1,7 @@
 """Benchmark of the moving body's exact collider (vfit_engine.collide.moving_body.MovingBodyCollider) on the walk.
 
-The default man walking (the built-in stride at 1.3 m/s, 30 frames per second), the body triangles within 5 cm
-of a garment draped on him (``--garment``, a shared MakeHuman outfit; or the whole body with ``--all``):
+The default man walking (the built-in stride at 1.3 m/s, 30 frames per second), the body parts within 5 cm
+of a garment on him (as an animation takes them) (``--garment``, a shared MakeHuman outfit; or the whole body with ``--all``):
 
 * ``advance``: one frame's grid (binning along the triangles' paths, lists, sides, bounds), median over the
   stride; beside it ``MeshCollider.refit`` of the whole body to the same frames (the still body's grid
@@ -28,13 +28,15 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "assets" / "garments"
 
 
 def _near(body, tris, garment_name, near):
-    """The triangles within ``near`` of the garment placed on ``body`` (its file's own place, moved by its
-    binding): cheap, no drape needed for which triangles are near."""
+    """The triangles the garment placed on ``body`` (its file's own place) collides with, as an animation
+    takes them (:func:`vfit_engine.animate.loop.near_triangles`): cheap, no drape needed for which are near."""
     from vfit_engine.animate.loop import near_triangles
+    from vfit_engine.body.model import BodyModel
+    from vfit_engine.body.segment import skin_parts
     from vfit_engine.garment.garment import load_garment
 
     g = load_garment(SHARED / garment_name / f"{garment_name}.obj")
-    return near_triangles(body, tris, g.verts, near)
+    return near_triangles(body, tris, g.verts, near, skin_parts(BodyModel.load()))
 
 
 def main():

@@ -320,13 +320,11 @@ class MovingBodyCollider:
     def motion_bound(self, points):
         """(k,) m: how far the surface within ``field_cell`` of each of ``points`` (k, 3) m moved at most in the
         last :meth:`at` (the largest move anywhere for points off the grid)."""
-        p = np.asarray(points, dtype=np.float64)
-        idx = np.floor((p - self.origin) / self.field_cell).astype(np.int64)
-        shape = np.array(self._field_max.shape)
-        inside = np.all((idx >= 0) & (idx < shape), axis=1)
-        out = np.full(len(p), self.moved)
-        i = idx[inside]
-        out[inside] = self._field_max[i[:, 0], i[:, 1], i[:, 2]]
+        from vfit_engine.kernels import collide_mesh_sweep as S
+
+        p = np.ascontiguousarray(points, dtype=np.float64)
+        out = np.empty(len(p))
+        S.field_lookup(p, self.origin, self.field_cell, self._field_max, self.moved, out)
         return out
 
     def settle_bounds(self):

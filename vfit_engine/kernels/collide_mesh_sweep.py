@@ -348,3 +348,18 @@ def listed_centre_sd(grid, reach, lo_out, hi_out):
                                grid.tri_edges, grid.edge_normals, grid.vert_normals)[0]
             lo_out[cc] = d
             hi_out[cc] = d
+
+
+@njit
+def field_lookup(points, f_origin, f_h, field, outside, out):
+    """``out`` (k,): the value of the coarse ``field`` (fx, fy, fz) in the cell of each of ``points`` (k, 3) m
+    (cells ``f_h`` from ``f_origin``); ``outside`` for a point off the field."""
+    fx, fy, fz = field.shape[0], field.shape[1], field.shape[2]
+    for p in range(points.shape[0]):
+        i = math.floor((points[p, 0] - f_origin[0]) / f_h)
+        j = math.floor((points[p, 1] - f_origin[1]) / f_h)
+        k = math.floor((points[p, 2] - f_origin[2]) / f_h)
+        if 0 <= i < fx and 0 <= j < fy and 0 <= k < fz:
+            out[p] = field[i, j, k]
+        else:
+            out[p] = outside
