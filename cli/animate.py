@@ -11,7 +11,7 @@ from .drape import body_targets, morph_options
 #: Files an animation writes into OUT (removed before a new run writes there).
 OUTPUT_GLOBS = ("frame_*.obj", "body_*.obj", "animation.glb", "preview.gif", "report.json")
 #: Colliders of an animation (``vfit_engine.animate.loop.COLLIDERS``; listed here so --help imports no numpy).
-COLLIDERS = ("mesh", "bone-spheres")
+COLLIDERS = ("mesh", "bone-spheres", "spheres")
 
 
 @click.command()
@@ -39,7 +39,8 @@ COLLIDERS = ("mesh", "bone-spheres")
               help="Seconds over which the motion is blended in from the A pose the garment is draped in.")
 @click.option("--collider", type=click.Choice(COLLIDERS), default="mesh", show_default=True,
               help="mesh = the exact body surface near the garment, moving every substep; bone-spheres = spheres "
-                   "along the bones (faster, approximate).")
+                   "along the bones, spheres = the medial sphere cover, both following the bones (faster, "
+                   "approximate).")
 @click.option("--skinning", type=click.Choice(["dqs", "lbs"]), default="dqs", show_default=True,
               help="How the body follows its bones: dual quaternions or linear blend.")
 @click.option("--material", default="cotton", show_default=True,

@@ -262,3 +262,29 @@ def test_unknown_joint_names_are_refused(body_model, tmp_path):
 def test_help_lists_the_motions():
     result = CliRunner().invoke(cli, ["animate", "--help"])
     assert result.exit_code == 0 and "--motion" in result.output and "CMU" in result.output
+
+
+def test_fitted_spheres_follow_their_bones(body_model, walk):
+    """A sphere on a bone moves as the skin that bone alone carries: centres put on vertices carried wholly by a
+    foot, a forearm and the head land, in a walking frame and between frames, where the skinned body
+    puts those vertices (a rigid motion; DQS and LBS agree there)."""
+    from vfit_engine.animate.loop import AnimateSettings, BoneSpheres, pose_frames
+    from vfit_engine.animate.motion import Poser
+    from vfit_engine.body.resolve import default_body
+
+    body = default_body(body_model, "female")
+    poser = Poser(body_model, body.verts)
+    bodies, _, mats, _ = pose_frames(poser, walk, AnimateSettings(frames=12, blend_s=0.1))
+    skin = poser.skin  # normalised influences, largest first
+    single = np.flatnonzero(skin.weights[skin.offsets[:-1]] > 1.0 - 1e-9)  # one bone carries the vertex
+    picks, bones = [], []
+    for name in ("foot.R", "lowerarm01.L", "head"):
+        b = body_model.bone_names.index(name)
+        whole = single[skin.bones[skin.offsets[single]] == b][:5]
+        picks += list(whole)
+        bones += [b] * len(whole)
+    assert len(picks) >= 10
+    spheres = BoneSpheres(poser.rest[picks], np.full(len(picks), 0.01), bones, mats)
+    np.testing.assert_allclose(spheres.at(12, 1.0)[:, :3], bodies[12][picks], atol=1e-9)
+    np.testing.assert_allclose(spheres.at(12, 0.5)[:, :3], 0.5 * (bodies[11][picks] + bodies[12][picks]), atol=1e-9)
+    assert np.linalg.norm(bodies[12][picks] - bodies[0][picks], axis=1).min() > 0.01  # they did move

@@ -28,8 +28,9 @@ import numpy as np
 
 from vfit_engine.errors import InputError
 
-#: Colliders of an animation: the exact body near the garment, or spheres along the bones.
-COLLIDERS = ("mesh", "bone-spheres")
+#: Colliders of an animation: the exact body near the garment, or spheres fitted to the body that follow its
+#: bones (along the bones, or the medial cover).
+COLLIDERS = ("mesh", "bone-spheres", "spheres")
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,7 @@ class AnimateSettings:
         15 mm): a moving body pushes the cloth between them more than a still one rests on it (the suit's
         walk, 50 frames: 15 of 60 frames 2.0-2.9 mm deep at 15 mm, none over 1.43 mm at 10 mm).
     skinning : {"dqs", "lbs"}
-    collider : {"mesh", "bone-spheres"}
+    collider : {"mesh", "bone-spheres", "spheres"}
     """
 
     fps: float = 30.0
@@ -359,7 +360,8 @@ class _Body:
         active = near_triangles(bodies[0], self.tris, rest_pos, st.near, setup.body_parts)
         self.collider = MovingBodyCollider(bodies[0], self.tris, box=(lo, hi), active=active)
         self.metrics_collider = self.collider
-        self.spheres = None if st.collider == "mesh" else BoneSpheres(setup.body, model, mats, dst)
+        self.spheres = None if st.collider == "mesh" else BoneSpheres.fitted(setup.body, model, mats, dst,
+                                                                                st.collider)
 
     def advance(self, k):
         self.collider.advance(self.bodies[k])
@@ -384,22 +386,43 @@ class _Body:
 
 
 class BoneSpheres:
-    """Spheres along the bones (:func:`vfit_engine.collide.bone_spheres.fit_bone_spheres`, fitted to the body at
-    rest) that follow their bones: each centre moves rigidly with its bone's skinning matrix, and between two
-    frames along the straight line.
+    """Sphere colliders fitted to the body at rest that follow its bones: each centre moves rigidly with its
+    bone's skinning matrix, and between two frames along the straight line.
+
+    ``kind`` ``"bone-spheres"``: spheres along the bones (:func:`vfit_engine.collide.bone_spheres.
+    fit_bone_spheres`), each on its bone; ``"spheres"``: the greedy medial cover
+    (:func:`vfit_engine.collide.auto_spheres.fit_spheres`), each following the bone that carries most of the
+    skin nearest its centre.
 
     Parameters
     ----------
-    body : Body
-        The body at rest (with its helper vertices: the skeleton).
-    model : BodyModel
+    centres : (s, 3) float64, m;  radii : (s,) float64, m
+        The spheres at rest (radii with their skin).
+    bone : (s,) int64
+        The bone each follows (``model.bone_names`` order).
     mats : (f + 1, b, 3, 4) float64
         The bones' skinning matrices of every frame (:func:`pose_frames`).
-    dst : DrapeSettings
-        ``spheres_per_bone`` and ``sphere_skin``, as a drape's bone-spheres.
     """
 
-    def __init__(self, body, model, mats, dst):
+    def __init__(self, centres, radii, bone, mats):
+        self.radii = np.asarray(radii, dtype=np.float64)
+        m = mats[:, np.asarray(bone, dtype=np.int64)]  # (f + 1, s, 3, 4)
+        self.centres = np.einsum("fsij,sj->fsi", m[:, :, :, :3], centres) + m[:, :, :, 3]
+        self._out = np.empty((len(self.radii), 4))
+        self._out[:, 3] = self.radii
+
+    @classmethod
+    def fitted(cls, body, model, mats, dst, kind="bone-spheres"):
+        """The spheres ``kind`` (class docstring) fitted to ``body`` (at rest, with its helper vertices) with the
+        drape's ``spheres_per_bone`` and ``sphere_skin`` (``dst``)."""
+        if kind == "spheres":
+            centres, radii, bone = cls._medial(body, model)
+        else:
+            centres, radii, bone = cls._along_bones(body, model, dst)
+        return cls(centres, np.asarray(radii) * (1.0 + dst.sphere_skin), bone, mats)
+
+    @staticmethod
+    def _along_bones(body, model, dst):
         from vfit_engine.body.segment import bone_positions, seed_bones
         from vfit_engine.collide.bone_spheres import MIN_BONE_LENGTH, fit_bone_spheres
 
@@ -412,12 +435,24 @@ class BoneSpheres:
         centres, radii, bone_of = fit_bone_spheres(body.surface, model.body_tris, [pos[n] for n in names],
                                                    per_bone=dst.spheres_per_bone)
         index = {n: i for i, n in enumerate(model.bone_names)}
-        bone = np.array([index[names[i]] for i in bone_of], dtype=np.int64)
-        self.radii = np.asarray(radii, dtype=np.float64) * (1.0 + dst.sphere_skin)
-        m = mats[:, bone]  # (f + 1, s, 3, 4)
-        self.centres = np.einsum("fsij,sj->fsi", m[:, :, :, :3], centres) + m[:, :, :, 3]
-        self._out = np.empty((len(self.radii), 4))
-        self._out[:, 3] = self.radii
+        return centres, radii, np.array([index[names[i]] for i in bone_of], dtype=np.int64)
+
+    @staticmethod
+    def _medial(body, model):
+        from scipy import sparse
+        from scipy.spatial import cKDTree
+
+        from vfit_engine.collide.auto_spheres import fit_spheres
+        from vfit_engine.collide.body_mesh import MeshCollider
+
+        surface = body.surface
+        centres, radii = fit_spheres(surface, model.body_tris, MeshCollider(surface, model.body_tris))
+        bone, vertex, weight = model.skin
+        keep = vertex < len(surface)
+        w = sparse.csr_matrix((weight[keep], (vertex[keep], bone[keep])), shape=(len(surface), len(model.bone_names)))
+        _, near = cKDTree(surface).query(centres, k=8)  # the skin round the sphere
+        carry = np.asarray(sum(w[near[:, j]] for j in range(near.shape[1])).todense())
+        return centres, radii, np.argmax(carry, axis=1)
 
     def at(self, k, s):
         """(s, 4) the spheres (centre, radius; m) at time ``s`` of frame ``k``."""
