@@ -228,6 +228,27 @@ class SolverVerlet:
         self._t_hi[ang] = np.maximum(self._t_hi[ang], angle)
         self._const_dt = None
 
+    # -- a moving body (issue 13: added by the animation's work; vfit_engine.animate) -------------------------
+    def body_moved(self, distance, spheres=None):
+        """The body moved since the last step: take its grid again (``self.body.grid``; a moving body's collider
+        makes one per frame) and, given ``spheres`` (S, 4) m, the sphere colliders' new centres and radii.
+
+        ``distance`` (m) bounds how far the body moved: a number, or a function of points (k, 3) m giving the
+        bound near each (the contact points are looked up where they were last queried). A point proven clear
+        of the body is proven that much less clear, and one that was touching it queries it afresh where the
+        body moved more than ``contact.reuse`` (the tangent plane it kept moved with the body).
+        """
+        if self.body is not None:
+            self._grid = self.body.grid
+        if spheres is not None:
+            spheres = np.array(spheres, dtype=np.float64, order="C")  # its own copy
+            if spheres.shape != self._spheres.shape:
+                raise ValueError(f"spheres must have shape {self._spheres.shape}, got {spheres.shape}")
+            self._spheres = spheres
+        d = distance(self._p_last) if callable(distance) else float(distance)
+        self._d_last -= d
+        self._d_last[(self._d_last < self._pt_skin + self.contact.reach) & (d > self.contact.reuse)] = -math.inf
+
     # -- constants ------------------------------------------------------------------------
     def effective_constants(self, dt):
         """The explicit springs' and hinges' constants at step ``dt`` (s), and the hinges solved as constraints.
