@@ -28,8 +28,9 @@ def kernels_cached():
 class Progress:
     """Stage lines and the settling line of one run (module docstring)."""
 
-    def __init__(self, quiet, stream=None):
+    def __init__(self, quiet, stream=None, command="vfit drape"):
         self.quiet = quiet
+        self.command = command
         self.stream = stream or sys.stderr
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.t0 = time.perf_counter()
@@ -39,7 +40,7 @@ class Progress:
         """Say what the run does now."""
         if not self.quiet:
             self._end_line()
-            click.echo(f"vfit drape: {text} ({time.perf_counter() - self.t0:.1f} s)", file=self.stream)
+            click.echo(f"{self.command}: {text} ({time.perf_counter() - self.t0:.1f} s)", file=self.stream)
 
     def frame(self, frame, moving, max_frames):
         """After frame ``frame``: ``moving``, the share of the cloth that moved more than the settle test's
@@ -52,7 +53,18 @@ class Progress:
             click.echo("\r" + text + "\033[K", file=self.stream, nl=False)
             self.open_line = True
         elif frame % LOG_EVERY == 0:
-            click.echo("vfit drape: " + text, file=self.stream)
+            click.echo(f"{self.command}: " + text, file=self.stream)
+
+    def line(self, text, frame):
+        """A line of a run that counts frames towards a known end (rewritten in place on a terminal)."""
+        if self.quiet:
+            return
+        text = f"{text} ({time.perf_counter() - self.t0:.1f} s)"
+        if self.tty:
+            click.echo("\r" + text + "\033[K", file=self.stream, nl=False)
+            self.open_line = True
+        elif frame % LOG_EVERY == 0:
+            click.echo(f"{self.command}: " + text, file=self.stream)
 
     def _end_line(self):
         if self.open_line:

@@ -9,7 +9,7 @@ import sys
 
 import click
 
-from . import batch, drape, measure, morph, pose, segment, size, transfer
+from . import animate, batch, drape, measure, morph, pose, segment, size, transfer
 from ._common import Terminated, interruption
 
 
@@ -65,6 +65,7 @@ cli.add_command(transfer.transfer)
 cli.add_command(size.size)
 cli.add_command(batch.batch)
 cli.add_command(pose.pose)
+cli.add_command(animate.animate)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -45,10 +45,12 @@ def hinge_forces(x, xp, dt, idx, k, kd, rest, eps=1e-7):
     return f
 
 
-def hinge_sweep(x, w, idx, compliance, rest, lam, at_scale, visit=None, eps=1e-7):
+def hinge_sweep(x, w, idx, compliance, rest, lam, at_scale, visit=None, eps=1e-7, moved=None):
     """One Gauss-Seidel sweep of hinges as compliant angle constraints (XPBD): hinge by hinge, C = theta -
     theta0 and its gradient by central differences of the angle; compliance 0 skips a hinge. Returns
-    (x, lam) (copies)."""
+    (x, lam) (copies); with a list ``moved``, appends the hinges that moved a vertex by more than the kernel's
+    ``HINGE_ACTIVE``."""
+    from vfit_engine.kernels.bending import HINGE_ACTIVE
     from vfit_engine.sim.bending import hinge_angles
 
     x, lam = x.copy(), lam.copy()
@@ -68,6 +70,8 @@ def hinge_sweep(x, w, idx, compliance, rest, lam, at_scale, visit=None, eps=1e-7
         dlam = (-d - at * lam[h]) / (np.sum(w[ids] * np.sum(grad ** 2, axis=1)) + at)
         lam[h] += dlam
         x[ids] += w[ids, None] * grad * dlam
+        if moved is not None and np.max(w[ids] * np.linalg.norm(grad, axis=1)) * abs(dlam) > HINGE_ACTIVE:
+            moved.append(h)
     return x, lam
 
 
@@ -308,12 +312,13 @@ def sphere_contacts(x, w, v, b, skin, spheres, reach, max_push):
 
 
 def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, max_push, c_contact, alpha_pins,
-                  segments=None):
+                  segments=None, hinge_every=2):
     """One substep of the cloth kernel against sphere colliders, fresh contact memory (copies).
 
-    ``cl``: dict with ``inv_mass gravity sp_i sp_j sp_rest sp_k sp_kd`` (and optionally the hinges' ``h_i h_k h_kd
-    h_rest``, with ``h_alpha h_seg`` those solved as constraints, :func:`hinge_sweep`, first in each segment's
-    sweep) and the constraint arrays of
+    ``cl``: dict with ``inv_mass gravity sp_i sp_j sp_rest sp_k sp_kd`` (and optionally the force hinges' ``h_i
+    h_k h_kd h_rest`` and the constraint hinges' ``hc_i hc_alpha hc_rest hc_seg``, :func:`hinge_sweep`, first in
+    each segment's sweep, in every ``hinge_every``-th sweep and the last: the first and last visit every hinge,
+    the others those the first found moving) and the constraint arrays of
     :func:`distance_sweep`; ``pins``: (idx, from, to) with the pins at ``alpha_pins`` of the way;
     ``pts``: (verts, bary, skin, spheres). Steps (the kernel's module docstring): explicit springs and
     gravity, Verlet with air damping; pins; contact half-spaces; ``iterations`` x {constraint sweep,
@@ -322,8 +327,6 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     sweep visits segment 0's constraints then its contacts, then segment 1's, then segment 2's (the
     kernel's "Two threads"); None: one segment. Returns (x, xp).
     """
-    from vfit_engine.kernels.cloth import HINGE_EVERY  # the sweeps that solve the hinges: a schedule, not a method
-
     w = cl["inv_mass"]
     idx = np.stack([cl["sp_i"], cl["sp_j"]], axis=1)
     f = spring_forces(x, xp, dt, idx, cl["sp_rest"], cl["sp_k"], cl["sp_kd"])
@@ -338,15 +341,19 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     n_c, n_p = len(cl["i"]), len(v)
     c_seg, p_seg = segments if segments is not None else ([0, n_c, n_c, n_c], [0, n_p, n_p, n_p])
     lam = np.zeros(len(cl["i"]))
-    h_lam = np.zeros(len(cl.get("h_alpha", ())))
+    h_lam = np.zeros(len(cl.get("hc_alpha", ())))
     push = np.zeros_like(x_new)
-    active, live = {}, {}
+    active, live, h_active = {}, {}, {}
     for it in range(iterations):
         every = it == 0 or it == iterations - 1
         for g in range(3):
-            if h_lam.size and (it % HINGE_EVERY == 0 or it == iterations - 1):
-                x_new, h_lam = hinge_sweep(x_new, w, cl["h_i"], cl["h_alpha"], cl["h_rest"], h_lam, 1.0 / dt ** 2,
-                                           range(cl["h_seg"][g], cl["h_seg"][g + 1]))
+            if h_lam.size and (it % hinge_every == 0 or it == iterations - 1):
+                # the first pass lists the hinges that moved a vertex, the middle ones visit those, the last all
+                hinges = range(cl["hc_seg"][g], cl["hc_seg"][g + 1])
+                if it == 0:
+                    h_active[g] = []
+                x_new, h_lam = hinge_sweep(x_new, w, cl["hc_i"], cl["hc_alpha"], cl["hc_rest"], h_lam, 1.0 / dt ** 2,
+                                           hinges if every else h_active[g], moved=h_active[g] if it == 0 else None)
             visit = range(c_seg[g], c_seg[g + 1]) if every else active[g]
             x_new, lam, found = distance_sweep(x_new, w, cl, lam, 1.0 / dt ** 2, visit)
             if it == 0:

@@ -312,7 +312,8 @@ def test_grid_is_a_read_only_body_grid(sphere_col):
     g = sphere_col.grid
     assert isinstance(g, BodyGrid)
     assert g._fields == ("tri_data", "tris", "tri_normals", "tri_edges", "edge_normals", "vert_normals", "origin",
-                         "dims", "h", "margin", "cell_start", "cell_tris", "cell_tdist", "cell_sd")
+                         "dims", "h", "margin", "cell_start", "cell_tris", "cell_tdist", "cell_sd", "cell_sd_hi")
+    assert g.cell_sd_hi is g.cell_sd  # a still body: one array, its centres' exact distances
     for name in ("tri_data", "tris", "tri_normals", "tri_edges", "edge_normals", "vert_normals", "origin", "dims",
                  "cell_start", "cell_tris", "cell_tdist", "cell_sd"):
         assert getattr(g, name).flags.c_contiguous, name

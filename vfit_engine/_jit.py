@@ -7,8 +7,21 @@ kernel imports those modules: ``vfit --help`` must never reach this file.
 
 fastmath stays off: girths are compared to 0.1 mm and cloth runs are checked
 for determinism, and fastmath's reassociation changes results between builds.
+
+The cloth kernel opens a few hundred short parallel regions per frame (two threads,
+:mod:`vfit_engine.kernels.cloth`). OpenMP's default wait policy spins at every barrier
+until the other thread arrives: on a machine where other programs hold the cores,
+that thread is often descheduled and each barrier costs a time slice -- a drape
+measured 7x slower (95 s against 14 s) beside two other busy programs on two cores,
+burning 48 s of CPU spinning. ``OMP_WAIT_POLICY=PASSIVE`` (waiting threads sleep)
+is set unless the user set a policy; it must be set before Numba loads its OpenMP
+layer, which happens at the first parallel kernel, after this import.
 """
-import numba
+import os
+
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import numba  # noqa: E402  (after the wait policy)
 
 #: Options shared by every kernel. ``cache=True`` keeps warm starts at a few ms.
 JIT_OPTIONS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")

@@ -2,8 +2,8 @@
 
 ``write_gif`` draws every frame with :mod:`vfit_engine.preview`'s rasterizer, lighting, colour
 maps and colour bar, through one camera framed on the body and on all the frames, so the picture
-does not jump while the cloth moves. The body does not move: it is drawn once per view and each
-frame draws only the garment over it. Frames share one palette and are not dithered, so what does
+does not jump while the cloth moves. A still body is drawn once per view and each frame draws only
+the garment over it; a moving body (``body_frames``, an animated fitting) is drawn in every frame. Frames share one palette and are not dithered, so what does
 not move keeps its exact pixels and nothing flickers. A counter and a progress line under the
 picture say where the animation is.
 
@@ -31,7 +31,7 @@ _PROGRESS_RGB, _TRACK_RGB = (90, 90, 90), (225, 225, 225)
 
 def write_gif(path, body_verts, body_tris, frames, garment_tris, values=None, *, fps=12,
               size=(600, 600), view="front", label="strain", unit="%", vmin=None, vmax=None,
-              cmap="strain", title=None, labels=None, zoom=None, shading="gouraud"):
+              cmap="strain", title=None, labels=None, zoom=None, shading="gouraud", body_frames=None):
     """Write an animated GIF (looping forever) of the garment's frames on the body.
 
     Parameters
@@ -50,6 +50,8 @@ def write_gif(path, body_verts, body_tris, frames, garment_tris, values=None, *,
         through ``cmap`` over one range for all frames, with a colour bar (see
         :func:`vfit_engine.preview.render_views` for ``label``, ``unit``, ``vmin``, ``vmax``,
         ``cmap``, ``zoom`` and ``shading``). ``None``: plain cloth colour, no bar.
+    body_frames : sequence of (n, 3) float, metres, or None
+        The body in every frame, when it moves (``body_verts`` is then its first frame's).
     fps : float
         Frames per second, 1 to 50 (a GIF stores delays in hundredths of a second, and browsers
         slow down delays under 20 ms).
@@ -79,7 +81,7 @@ def write_gif(path, body_verts, body_tris, frames, garment_tris, values=None, *,
     fps = _check_fps(fps)
     pictures = render_frames(body_verts, body_tris, frames, garment_tris, values, size=size, view=view,
                              label=label, unit=unit, vmin=vmin, vmax=vmax, cmap=cmap, title=title,
-                             labels=labels, zoom=zoom, shading=shading)
+                             labels=labels, zoom=zoom, shading=shading, body_frames=body_frames)
     first = pictures[0]
     palette = _palette([first, pictures[-1]], pictures.bar)
     rest = (_quantize(pictures[k], palette) for k in range(1, len(pictures)))  # drawn as written
@@ -94,7 +96,7 @@ def write_gif(path, body_verts, body_tris, frames, garment_tris, values=None, *,
 
 def render_frames(body_verts, body_tris, frames, garment_tris, values=None, *, size=(600, 600),
                   view="front", label="strain", unit="%", vmin=None, vmax=None, cmap="strain",
-                  title=None, labels=None, zoom=None, shading="gouraud"):
+                  title=None, labels=None, zoom=None, shading="gouraud", body_frames=None):
     """The pictures of :func:`write_gif`: a sequence of (height, width, 3) uint8 sRGB arrays.
 
     Everything is checked at once; a picture is drawn when it is indexed (in any order), so a long
@@ -104,20 +106,29 @@ def render_frames(body_verts, body_tris, frames, garment_tris, values=None, *, s
     scene = preview._check_scene(body_verts, body_tris, positions[0], garment_tris, cmap=cmap, size=size,
                                  views=view, shading=shading, label=label, unit=unit)
     texts = _check_labels(labels, len(positions))
+    bodies = None
+    if body_frames is not None:
+        if body_verts is None or len(body_frames) != len(positions):
+            raise InputError(f"body_frames must give the body (body_verts, body_tris) in each of the "
+                             f"{len(positions)} frames")
+        bodies = [preview._check_verts(f"body_frames[{k}]", b) for k, b in enumerate(body_frames)]
+        if any(b.shape != scene.meshes[0][0].shape for b in bodies):
+            raise InputError("body_frames must all have the body's vertex count")
     rgb, bar, lo, hi = preview._garment_colours(values, positions[0].shape[0], cmap, vmin, vmax, label,
                                                 unit, n_frames=len(positions))
     lay = preview_text.layout(scene.width, scene.height, len(scene.rotations), title, bar, footer=True)
-    framing = preview._framing([v for v, _ in scene.meshes[:-1]] + positions, scene.rotations, zoom,
-                               lay["panel_w"], lay["panel_h"])
+    framing = preview._framing([v for v, _ in scene.meshes[:-1]] + (bodies or []) + positions, scene.rotations,
+                               zoom, lay["panel_w"], lay["panel_h"])
     canvas = np.empty((scene.height, scene.width, 3))
     canvas[:] = preview.BACKGROUND_RGB
     base = preview._decorate(canvas, lay, scene.captions, title, bar, cmap, lo, hi)
-    painter = _Painter(scene, framing, lay, base, shading)
+    painter = _Painter(scene, framing, lay, base, shading, moving=bodies is not None)
     tris = scene.meshes[-1][1]
 
     def draw(k):
         colours = rgb if rgb.ndim == 2 else rgb[k]
-        return painter.frame(positions[k], tris, colours, texts[k], (k + 1) / len(positions))
+        return painter.frame(positions[k], tris, colours, texts[k], (k + 1) / len(positions),
+                             None if bodies is None else bodies[k])
 
     bar = None
     if "bar_box" in lay:
@@ -144,27 +155,37 @@ class _Frames(Sequence):
 class _Painter:
     """Draws frames: the body's samples once per view, each frame's garment over a restored copy."""
 
-    def __init__(self, scene, framing, lay, base, shading):
+    def __init__(self, scene, framing, lay, base, shading, moving=False):
         self.lay, self.base, self.shading, self.framing = lay, base, shading, framing
         ss, ph, pw = _SUPERSAMPLE, lay["panel_h"], lay["panel_w"]
-        body = [(v, t, c, preview._normals(v, t, shading)) for (v, t), c in zip(scene.meshes, scene.colours)]
-        self.body = []  # per view: (image, depth) of the body alone
+        self.scene, self.moving = scene, moving
+        body = [] if moving else [(v, t, c, preview._normals(v, t, shading))
+                                  for (v, t), c in zip(scene.meshes, scene.colours)]
+        self.body = []  # per view: (image, depth) of the body alone (nothing when it moves)
         for view in range(len(scene.rotations)):
             image, depth = np.empty((ph * ss, pw * ss, 3)), np.full((ph * ss, pw * ss), -np.inf)
+            image[:] = preview.BACKGROUND_RGB
             preview._draw_meshes(body, framing, view, ss, shading, image, depth)
             self.body.append((image, depth))
         self.work = [(image.copy(), depth.copy()) for image, depth in self.body]
         self.dirty = [None] * len(self.body)  # sample box the last frame's garment drew over
         self.panel = np.empty((ph, pw, 3))
 
-    def frame(self, verts, tris, rgb, caption, progress):
-        """The (h, w, 3) uint8 picture of the garment at ``verts`` (coloured ``rgb``) on the body."""
+    def frame(self, verts, tris, rgb, caption, progress, body_verts=None):
+        """The (h, w, 3) uint8 picture of the garment at ``verts`` (coloured ``rgb``) on the body (at
+        ``body_verts`` when it moves)."""
         lay, ss = self.lay, _SUPERSAMPLE
         out = self.base.copy()
         garment = [(verts, tris, rgb, preview._normals(verts, tris, self.shading))]
+        if self.moving:
+            (_, btris), colours = self.scene.meshes[0], self.scene.colours[0]
+            garment.insert(0, (body_verts, btris, colours, preview._normals(body_verts, btris, self.shading)))
         for view, x0 in enumerate(lay["panel_x"]):
             image, depth = self.work[view]
-            if self.dirty[view] is not None:  # put the body back where the last garment was
+            if self.moving:  # everything is drawn anew
+                np.copyto(image, self.body[view][0])
+                np.copyto(depth, self.body[view][1])
+            elif self.dirty[view] is not None:  # put the body back where the last garment was
                 r0, r1, c0, c1 = self.dirty[view]
                 image[r0:r1, c0:c1] = self.body[view][0][r0:r1, c0:c1]
                 depth[r0:r1, c0:c1] = self.body[view][1][r0:r1, c0:c1]

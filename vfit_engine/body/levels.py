@@ -57,13 +57,13 @@ class Sections:
             xs[:, k] = np.where(cross, a[:, 0] + s * (b[:, 0] - a[:, 0]), np.nan)
         lo, hi = np.nanmin(xs, 1), np.nanmax(xs, 1)
         order = np.argsort(lo)
-        runs = []
-        for a, b in zip(lo[order].tolist(), hi[order].tolist()):
-            if runs and a <= runs[-1][1] + tol:
-                runs[-1][1] = max(runs[-1][1], b)
-            else:
-                runs.append([a, b])
-        return np.array(runs)
+        lo, hi = lo[order], hi[order]
+        # a run ends where the next interval starts beyond the furthest end so far (the run's own end: every
+        # earlier run ended before this one began)
+        start = np.ones(lo.size, dtype=bool)
+        start[1:] = lo[1:] > np.maximum.accumulate(hi)[:-1] + tol
+        first = np.flatnonzero(start)
+        return np.stack([lo[first], np.maximum.reduceat(hi, first)], axis=1)
 
     def central_run(self, y, x_c):
         """The run (x0, x1) m at height ``y`` that holds ``x = x_c``, or None."""

@@ -306,7 +306,7 @@ class MeshCollider:
         cell_sd = np.empty(ncells)
         grid = K.BodyGrid(tri_data, tris, np.ascontiguousarray(tri_normals[self._tri_order]), self._grid_tri_edges,
                           edge_normals, vert_normals, origin, dims, h, margin, cell_start, cell_tris, cell_tdist,
-                          cell_sd)
+                          cell_sd, cell_sd)
         K.cell_centre_sd(np.flatnonzero(cell_start[1:] != cell_start[:-1]), grid, cell_sd)
         ref, delta = self._empty_ref, np.inf
         if not exact_empty and ref is not None and np.array_equal(ref[0], dims) and np.array_equal(ref[1], origin):

@@ -113,8 +113,83 @@ def write_scene_glb(path, parts):
     return path
 
 
-def _part_arrays(part):
-    """Validate one part; return ({attribute: float32 (N, c)}, uint32 (3T,) indices)."""
+def write_animation_glb(path, parts, frames, fps):
+    """Write ``parts`` animated through ``frames`` as one binary glTF 2.0 file, atomically.
+
+    Each part's mesh carries one morph target per frame after the first (the positions' and normals'
+    change from frame 0, at the glTF vertices of the split seams), and an animation sets the weight of
+    frame ``k``'s target to 1 from time ``k / fps`` on (STEP interpolation), the others to 0: Blender (shape
+    keys) and three.js (morph targets) play it frame by frame, exactly the positions given.
+
+    Parameters
+    ----------
+    path : str or Path
+    parts : sequence of ScenePart or tuples
+        As :func:`write_scene_glb`; ``verts`` is ignored (frame 0 is the base).
+    frames : sequence of (f, n_part, 3) float arrays, m
+        Every part's positions in every frame (the same ``f`` >= 1 for all parts).
+    fps : float
+        Frames per second.
+
+    Returns
+    -------
+    Path
+    """
+    parts = [ScenePart(*p) for p in parts]
+    frames = [np.asarray(f, dtype=np.float64) for f in frames]
+    if not parts or len(frames) != len(parts):
+        raise InputError("glb animation: give one (frames, n, 3) array per part")
+    count = frames[0].shape[0]
+    if count < 1 or any(f.ndim != 3 or f.shape[0] != count for f in frames):
+        raise InputError("glb animation: every part needs the same number (>= 1) of frames")
+    if not (np.isfinite(fps) and fps > 0):
+        raise InputError(f"glb animation: fps must be > 0, got {fps!r}")
+    buf = _Buffer()
+    doc = {"asset": {"version": "2.0", "generator": "vfit"}, "scene": 0,
+           "scenes": [{"nodes": list(range(len(parts)))}], "nodes": [], "meshes": [], "materials": []}
+    times = buf.add(np.ascontiguousarray(np.arange(count) / float(fps), dtype=np.float32), None, bounds=True)
+    weights = np.zeros((count, max(count - 1, 0)), dtype=np.float32)
+    weights[np.arange(1, count), np.arange(count - 1)] = 1.0
+    samplers, channels = [], []
+    for i, (part, pos) in enumerate(zip(parts, frames)):
+        part = part._replace(verts=pos[0])
+        attributes, indices, src = _part_arrays(part, with_src=True)
+        if pos.shape[1:] != (part.mesh.n_verts, 3) or not np.all(np.isfinite(pos)):
+            raise InputError(f"glb part {part.name!r}: frames must be finite, ({count}, {part.mesh.n_verts}, 3)")
+        acc = {key: buf.add(arr, _ARRAY_BUFFER, bounds=key == "POSITION") for key, arr in attributes.items()}
+        base_n = attributes["NORMAL"]
+        targets = []
+        for k in range(1, count):
+            nk = vertex_normals(pos[k], part.mesh.face_verts, part.mesh.face_offsets)
+            nk[np.linalg.norm(nk, axis=1) == 0] = (0.0, 1.0, 0.0)
+            targets.append({"POSITION": buf.add(np.ascontiguousarray((pos[k] - pos[0])[src], dtype=np.float32),
+                                                _ARRAY_BUFFER, bounds=True),
+                            "NORMAL": buf.add(np.ascontiguousarray(nk[src], dtype=np.float32) - base_n,
+                                              _ARRAY_BUFFER)})
+        prim = {"attributes": acc, "indices": buf.add(indices, _ELEMENT_ARRAY_BUFFER), "material": i,
+                "mode": _TRIANGLES}
+        mesh = {"name": part.name, "primitives": [prim]}
+        if targets:
+            prim["targets"] = targets
+            mesh["weights"] = [0.0] * len(targets)
+            samplers.append({"input": times, "output": buf.add(weights.ravel(), None), "interpolation": "STEP"})
+            channels.append({"sampler": len(samplers) - 1, "target": {"node": i, "path": "weights"}})
+        doc["nodes"].append({"name": part.name, "mesh": i})
+        doc["meshes"].append(mesh)
+        doc["materials"].append(_material(part, "COLOR_0" in attributes))
+    if channels:
+        doc["animations"] = [{"name": "animation", "samplers": samplers, "channels": channels}]
+    doc.update(buf.json_fields())
+    data = _glb_bytes(doc, buf.data())
+    path = Path(path)
+    with atomic_write(path, "wb") as f:
+        f.write(data)
+    return path
+
+
+def _part_arrays(part, with_src=False):
+    """Validate one part; return ({attribute: float32 (N, c)}, uint32 (3T,) indices) and, ``with_src``, the
+    source vertex of every glTF vertex."""
     name, mesh = part.name, part.mesh
 
     def bad(problem):
@@ -145,7 +220,8 @@ def _part_arrays(part):
     if colors is not None:
         attributes["COLOR_0"] = colors[src]
     attributes = {k: np.ascontiguousarray(a, dtype=np.float32) for k, a in attributes.items()}
-    return attributes, np.ascontiguousarray(tri, dtype=np.uint32).ravel()
+    indices = np.ascontiguousarray(tri, dtype=np.uint32).ravel()
+    return (attributes, indices, src) if with_src else (attributes, indices)
 
 
 def _split_seams(mesh, tri, bad):
@@ -229,7 +305,10 @@ class _Buffer:
     def add(self, arr, target, bounds=False):
         """Append a float32 (N, c) or uint32 (N,) array; return its accessor index."""
         raw = arr.tobytes()
-        self.views.append({"buffer": 0, "byteOffset": self.length, "byteLength": len(raw), "target": target})
+        view = {"buffer": 0, "byteOffset": self.length, "byteLength": len(raw)}
+        if target is not None:  # animation data: a buffer view without a GPU target
+            view["target"] = target
+        self.views.append(view)
         # every component here is 4 bytes, so views (and accessors at offset 0) stay 4-aligned
         self.chunks.append(raw)
         self.length += len(raw)
@@ -237,8 +316,8 @@ class _Buffer:
         acc = {"bufferView": len(self.views) - 1, "byteOffset": 0, "count": int(arr.shape[0]), "type": kind,
                "componentType": _UINT if arr.dtype == np.uint32 else _FLOAT}
         if bounds:  # the spec requires min/max on POSITION, exactly the float32 values written
-            acc["min"] = [float(x) for x in arr.min(axis=0)]
-            acc["max"] = [float(x) for x in arr.max(axis=0)]
+            acc["min"] = [float(x) for x in np.atleast_1d(arr.min(axis=0))]
+            acc["max"] = [float(x) for x in np.atleast_1d(arr.max(axis=0))]
         self.accessors.append(acc)
         return len(self.accessors) - 1
 

@@ -119,17 +119,35 @@ def eval_hinge_forces(pos, pos_prev, dt, hinge_indices, k, kd, rest_angle):
     return out
 
 
+#: A hinge constraint whose listing pass in a substep (the cloth kernel's second) moved a vertex by more than this
+#: (m) is solved in that substep's middle passes too; the others wait for the last (:func:`_project_hinges`).
+#: Measured on a resting suit (male_casualsuit06, 14.7 k hinge constraints): half are listed, the drape's cost
+#: falls by a tenth and its result, and the cantilever's at a drape's step, do not change (to 0.01 points).
+HINGE_ACTIVE = 2e-7
+#: Passes of :func:`_project_hinges`: every hinge; every hinge, listing those that moved a vertex by more than
+#: ``HINGE_ACTIVE``; the listed ones only.
+PASS_ALL, PASS_LIST, PASS_LISTED = 0, 1, 2
+
+
 @njit
-def _project_hinges(x, w, hi, h_alpha, hrest, lam, at_scale, h0, h1):
-    """One Gauss-Seidel sweep of hinges ``h0 .. h1 - 1`` as compliant angle constraints (XPBD, Macklin et al.
+def _project_hinges(x, w, hi, h_alpha, hrest, lam, at_scale, h0, h1, active, n_active, mode):
+    """One Gauss-Seidel pass over hinges ``h0 .. h1 - 1`` as compliant angle constraints (XPBD, Macklin et al.
     2016): ``C = theta - theta0``, compliance ``alpha = 1 / k`` (rad^2 / (N m)), ``at = alpha at_scale``::
 
         dlam = (-C - at lam) / (sum_m w_m |g_m|^2 + at),   x_m += w_m g_m dlam
 
     -- the implicit counterpart of :func:`_add_hinge_forces` for hinges stiffer than an explicit step can
     carry (stable at any step; the same static balance ``k C = lam / dt^2``). Hinges with ``h_alpha`` 0
-    are explicit only and skipped."""
-    for h in range(h0, h1):
+    are explicit only and skipped.
+
+    ``mode`` (:data:`PASS_ALL`, :data:`PASS_LIST`, :data:`PASS_LISTED`): visit every hinge; every hinge, listing
+    in ``active`` (from index ``h0``) those that moved a vertex by more than :data:`HINGE_ACTIVE`; or only the
+    ``n_active`` listed. Returns the number listed (``PASS_LIST``), else ``n_active``."""
+    count = h1 - h0 if mode != PASS_LISTED else n_active
+    n = 0
+    eps2 = HINGE_ACTIVE * HINGE_ACTIVE
+    for a in range(count):
+        h = active[h0 + a] if mode == PASS_LISTED else h0 + a
         alpha = h_alpha[h]
         if alpha <= 0.0:
             continue
@@ -138,8 +156,11 @@ def _project_hinges(x, w, hi, h_alpha, hrest, lam, at_scale, h0, h1):
         if not ok:
             continue
         w0, w1, w2, w3 = w[i0], w[i1], w[i2], w[i3]
-        den = (w0 * (g0x * g0x + g0y * g0y + g0z * g0z) + w1 * (g1x * g1x + g1y * g1y + g1z * g1z)
-               + w2 * (g2x * g2x + g2y * g2y + g2z * g2z) + w3 * (g3x * g3x + g3y * g3y + g3z * g3z))
+        q0 = g0x * g0x + g0y * g0y + g0z * g0z
+        q1 = g1x * g1x + g1y * g1y + g1z * g1z
+        q2 = g2x * g2x + g2y * g2y + g2z * g2z
+        q3 = g3x * g3x + g3y * g3y + g3z * g3z
+        den = w0 * q0 + w1 * q1 + w2 * q2 + w3 * q3
         at = alpha * at_scale
         dl = (-d - at * lam[h]) / (den + at)
         lam[h] += dl
@@ -147,6 +168,12 @@ def _project_hinges(x, w, hi, h_alpha, hrest, lam, at_scale, h0, h1):
         _add(x, i1, w1 * dl, g1x, g1y, g1z)
         _add(x, i2, w2 * dl, g2x, g2y, g2z)
         _add(x, i3, w3 * dl, g3x, g3y, g3z)
+        if mode == PASS_LIST:
+            move2 = dl * dl * max(max(w0 * w0 * q0, w1 * w1 * q1), max(w2 * w2 * q2, w3 * w3 * q3))
+            if move2 > eps2:
+                active[h0 + n] = h
+                n += 1
+    return n if mode == PASS_LIST else n_active
 
 
 def project_hinges(pos, inv_mass, hinge_indices, compliance, rest_angle, lam, dt):
@@ -165,8 +192,9 @@ def project_hinges(pos, inv_mass, hinge_indices, compliance, rest_angle, lam, dt
         The multipliers, accumulated in place (0 at a step's first sweep).
     dt : float, s
     """
+    count = int(np.asarray(hinge_indices).reshape(-1, 4).shape[0])
     _project_hinges(pos, np.ascontiguousarray(inv_mass, dtype=np.float64),
                     np.ascontiguousarray(hinge_indices, dtype=np.int64).reshape(-1, 4),
                     np.ascontiguousarray(compliance, dtype=np.float64),
-                    np.ascontiguousarray(rest_angle, dtype=np.float64), lam, 1.0 / (float(dt) * float(dt)), 0,
-                    int(np.asarray(hinge_indices).reshape(-1, 4).shape[0]))
+                    np.ascontiguousarray(rest_angle, dtype=np.float64), lam, 1.0 / (float(dt) * float(dt)), 0, count,
+                    np.zeros(0, np.int64), 0, PASS_ALL)

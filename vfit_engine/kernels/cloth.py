@@ -13,9 +13,11 @@ the same Gauss-Seidel loop, as in position based dynamics, Mueller et al. 2007):
            n . p >= n . q + min(skin_p, d + max_push)        (d its signed distance now)
        (a point inside comes out by at most ``max_push`` per substep)
     4. ``iterations`` x { every hinge too stiff for step 1 (an angle constraint of compliance 1 / k:
-       :func:`vfit_engine.kernels.bending._project_hinges`; every ``HINGE_EVERY``-th sweep and the last);
-       every distance constraint (below); every contact half-space } -- the distance constraints' and
-       contacts' first
+       :func:`vfit_engine.kernels.bending._project_hinges`; every ``hinge_every``-th sweep and the last: the
+       first and last of these passes visit every such hinge, the second lists those that still moved a vertex
+       by more than ``HINGE_ACTIVE`` and the others visit only those -- after two passes half of a resting
+       garment's hinges are within a fraction of a micrometre of their balance); every distance constraint
+       (below); every contact half-space } -- the distance constraints' and contacts' first
        and last of them; the middle ones visit only the constraints near or beyond their bands' ends
        after the first (``ACTIVE_BAND``) or at a vertex the contacts pushed hard in the last substep
        (``PUSH_HOT``), and the contacts near or below their half-spaces (``ACTIVE_GAP``): most cloth lies
@@ -65,7 +67,7 @@ import math
 from collections import namedtuple
 
 from vfit_engine._jit import njit, prange
-from vfit_engine.kernels.bending import _add_hinge_forces, _project_hinges
+from vfit_engine.kernels.bending import PASS_ALL, PASS_LIST, PASS_LISTED, _add_hinge_forces, _project_hinges
 from vfit_engine.kernels.collide_mesh import _query_point
 from vfit_engine.kernels.integrate import _advance_in_place, _move_pins
 from vfit_engine.kernels.springs import _add_spring_forces
@@ -76,14 +78,16 @@ from vfit_engine.kernels.springs import _add_spring_forces
 #: c_relax (C,); c_corner (C,) int64 (a shear limit's corner, else -1) and c_cos_lo, c_cos_hi (C,): the
 #: cosines of its corner's smallest and largest angle (an angle constraint instead of a distance); c_once
 #: (C,) bool: solved in the full sweeps only (weak restoring springs, never in the active set); sp_seg,
-#: c_seg (4,) int64: the springs' and constraints' segments (module docstring, "Two threads"); bending
-#: hinges h_i (H, 4) int64, h_k (H,) N m, h_kd (H,) N m s, h_rest (H,) rad and their segments h_seg (4,)
-#: (:mod:`.bending`); h_alpha (H,) rad^2/(N m): the compliance of the hinges solved as constraints
-#: (:func:`vfit_engine.kernels.bending._project_hinges`; 0: explicit only).
+#: c_seg (4,) int64: the springs' and constraints' segments (module docstring, "Two threads"); the bending
+#: hinges that act as explicit forces, h_i (H, 4) int64, h_k (H,) N m, h_kd (H,) N m s, h_rest (H,) rad and their
+#: segments h_seg (4,) (:mod:`.bending`); and those solved as compliant angle constraints (too stiff for the
+#: explicit step), hc_i (K, 4) int64, hc_alpha (K,) rad^2/(N m), hc_rest (K,) rad, hc_seg (4,)
+#: (:func:`vfit_engine.kernels.bending._project_hinges`). The two sets are apart so that neither pass computes
+#: a hinge's angle for nothing (a drape's garment has 2-3 times as many constraint hinges as force hinges).
 ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", "sp_rest", "sp_k", "sp_kd",
                                          "c_i", "c_j", "c_lo", "c_hi", "c_alpha", "c_relax", "c_corner", "c_cos_lo",
                                          "c_cos_hi", "c_once", "sp_seg", "c_seg", "h_i", "h_k", "h_kd", "h_rest",
-                                         "h_seg", "h_alpha"])
+                                         "h_seg", "hc_i", "hc_alpha", "hc_rest", "hc_seg"])
 
 #: Contact points: pt_v (P, 3) int64 vertices and pt_b (P, 3) float64 barycentric weights (cloth
 #: vertex i is (i, i, i) with (1, 0, 0)); pt_skin (P,) m, the clearance each keeps; spheres (S, 4)
@@ -94,16 +98,19 @@ ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres
 #: of the signed distance at the last query; ``-inf`` forces one), c_n (P, 3) and c_nq (P,) m (the
 #: plane of the last query); scratch: c_h (P,) m, c_list (P,) int64, push (n, 3) m, f (n, 3) N,
 #: lam (C,) m kg, active (C,) int64; c_n2 (P, 3), c_nq2 (P,) m (a second plane in a crease, NaN: none)
-#: and c_h2 (P,) m; c_live (P,) int64 (the contacts a substep's middle sweeps solve); counts (3, 4) int64:
-#: per segment its contacts, live contacts, active constraints and queries; hot (n,) bool: the vertices the
-#: contacts pushed more than ``PUSH_HOT`` in the last substep; h_lam (H,): the hinge constraints' multipliers.
+#: and c_h2 (P,) m; c_live (P,) int64 (the contacts a substep's middle sweeps solve); counts (3, 5) int64:
+#: per segment its contacts, live contacts, active constraints, queries and active hinge constraints; hot (n,)
+#: bool: the vertices the contacts pushed more than ``PUSH_HOT`` in the last substep; h_lam (K,): the hinge
+#: constraints' multipliers; h_active (K,) int64: the hinge constraints a substep's middle passes solve.
 ContactState = namedtuple("ContactState", ["p_last", "d_last", "c_n", "c_nq", "c_h", "c_list", "push", "f", "lam",
-                                           "active", "c_n2", "c_nq2", "c_h2", "c_live", "counts", "hot", "h_lam"])
+                                           "active", "c_n2", "c_nq2", "c_h2", "c_live", "counts", "hot", "h_lam",
+                                           "h_active"])
 
 #: Scalars of a substep: dt s, c_air (per step), iterations, reach m, friction, max_push m,
-#: c_contact (per step), reuse m, use_grid (query the body grid).
+#: c_contact (per step), reuse m, use_grid (query the body grid), hinge_every (the hinge constraints are
+#: solved in every hinge_every-th sweep and the last).
 StepParams = namedtuple("StepParams", ["dt", "c_air", "iterations", "reach", "friction", "max_push",
-                                       "c_contact", "reuse", "use_grid"])
+                                       "c_contact", "reuse", "use_grid", "hinge_every"])
 
 #: A constraint within this fraction of its band's ends after a substep's first sweep (or holding a
 #: force) stays in that substep's later sweeps; the others are skipped (most cloth lies well inside
@@ -123,10 +130,6 @@ SYMMETRIC = False
 #: next, they kept a period-6-substep cycle of the cloth round them that never settled (a top stretched
 #: 24-37 % over the bust of a body 8 cm wider than it was made for).
 PUSH_HOT = 0.0002
-#: The hinge constraints are solved in every HINGE_EVERY-th sweep and the last: measured on the cantilever at a
-#: drape's step (8-17x the explicit bound), denim droops 40.6 / 40.9 / 41.7 / 48.1 degrees solved in every
-#: sweep / every 2nd / every 3rd / the first and last (40.0 explicit); every 2nd costs ~60 % of every sweep.
-HINGE_EVERY = 2
 
 
 @njit(inline="always")
@@ -483,23 +486,31 @@ def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub
         st.h_lam[:] = 0.0
         st.push[:] = 0.0
         for it in range(prm.iterations):
+            hinges = it % prm.hinge_every == 0 or it == prm.iterations - 1
             for g in prange(2):
-                _sweep_segment(x, cl, pts, st, g, it, prm.iterations, 1.0 / (dt * dt))
-            _sweep_segment(x, cl, pts, st, 2, it, prm.iterations, 1.0 / (dt * dt))
+                _sweep_segment(x, cl, pts, st, g, it, prm.iterations, 1.0 / (dt * dt), hinges, prm.hinge_every)
+            _sweep_segment(x, cl, pts, st, 2, it, prm.iterations, 1.0 / (dt * dt), hinges, prm.hinge_every)
         _friction(x, xp, w, st.push, prm.friction, 1.0 - prm.c_contact, st.hot)
     return queries
 
 
 @njit
-def _sweep_segment(x, cl, pts, st, g, it, iterations, at_scale):
-    """Sweep ``it`` of segment ``g``: its constraints, then its contacts (step 4). The first and last
-    sweeps visit all of them (the first lists the active constraints and live contacts), the others
-    those listed."""
+def _sweep_segment(x, cl, pts, st, g, it, iterations, at_scale, hinges, hinge_every):
+    """Sweep ``it`` of segment ``g``: its hinge constraints (if ``hinges``: a pass of every ``hinge_every``), its
+    constraints, then its contacts (step 4). The first and last sweeps visit all constraints and contacts (the
+    first lists the active constraints and live contacts), the others those listed; the first and last hinge
+    passes visit every hinge constraint, the second lists those still moving, the others visit those."""
     full = it == 0 or it == iterations - 1
     c0, p0 = cl.c_seg[g], pts.p_seg[g]
     counts = st.counts
-    if it % HINGE_EVERY == 0 or it == iterations - 1:
-        _project_hinges(x, cl.inv_mass, cl.h_i, cl.h_alpha, cl.h_rest, st.h_lam, at_scale, cl.h_seg[g], cl.h_seg[g + 1])
+    if hinges:
+        # the first pass answers the substep's own motion (every hinge moves); the second tells which still do
+        mode = PASS_ALL if it < hinge_every or it == iterations - 1 else PASS_LIST if it < 2 * hinge_every else \
+            PASS_LISTED
+        n = _project_hinges(x, cl.inv_mass, cl.hc_i, cl.hc_alpha, cl.hc_rest, st.h_lam, at_scale, cl.hc_seg[g],
+                            cl.hc_seg[g + 1], st.h_active, counts[g, 4], mode)
+        if mode == PASS_LIST:
+            counts[g, 4] = n
     n = _solve_distances(x, cl.inv_mass, cl.c_i, cl.c_j, cl.c_lo, cl.c_hi, cl.c_alpha, cl.c_relax, cl.c_corner,
                          cl.c_cos_lo, cl.c_cos_hi, cl.c_once, st.lam, at_scale, st.active, st.hot, c0, cl.c_seg[g + 1],
                          counts[g, 2], full, SYMMETRIC and it % 2 == 1)

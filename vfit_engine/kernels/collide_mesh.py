@@ -53,10 +53,14 @@ from vfit_engine._jit import njit
 #:   triangle lists; ``cell_tdist`` is a lower bound on the triangle's distance to the cell centre
 #:   (the floor of its distance level, reach / 64 wide: :mod:`.collide_mesh_build`), never decreasing along a list;
 #: * cell_sd (nx*ny*nz,) float64, m: signed distance of each cell centre (exact where the cell
-#:   lists triangles, else a lower bound on the magnitude with the right sign).
+#:   lists triangles, else a lower bound on the magnitude with the right sign);
+#: * cell_sd_hi (nx*ny*nz,) float64, m: for a body that moves while one grid serves it
+#:   (:class:`vfit_engine.collide.moving_body.MovingBodyCollider`), ``cell_sd`` is a lower bound
+#:   and ``cell_sd_hi`` an upper bound of each centre's signed distance at any time the grid serves;
+#:   a still body passes ``cell_sd`` itself (the default: a one-cell placeholder for an empty grid).
 BodyGrid = namedtuple("BodyGrid", ["tri_data", "tris", "tri_normals", "tri_edges", "edge_normals", "vert_normals",
                                    "origin", "dims", "h", "margin", "cell_start", "cell_tris", "cell_tdist",
-                                   "cell_sd"])
+                                   "cell_sd", "cell_sd_hi"], defaults=(np.zeros(1),))
 
 # feature codes returned by _closest_on_triangle
 _FACE = 0  # 1, 2, 3: vertex 0, 1, 2; 4, 5, 6: edge 0 (v0 v1), 1 (v1 v2), 2 (v2 v0)
@@ -218,6 +222,7 @@ def _query_point(px, py, pz, grid, trust_sd, max_out, max_in):
     edge_normals, vert_normals = grid.edge_normals, grid.vert_normals
     origin, dims, h, margin = grid.origin, grid.dims, grid.h, grid.margin
     cell_start, cell_tris, cell_tdist, cell_sd = grid.cell_start, grid.cell_tris, grid.cell_tdist, grid.cell_sd
+    cell_sd_hi = grid.cell_sd_hi
     nx_, ny_, nz_ = dims[0], dims[1], dims[2]
     half = 0.5 * math.sqrt(3.0) * h
     # clamp into the grid box; outside it |p - y|^2 >= |p - p'|^2 + |p' - y|^2 for every y in the box
@@ -236,23 +241,24 @@ def _query_point(px, py, pz, grid, trust_sd, max_out, max_in):
     j = min(max(int(fy), 0), ny_ - 1)
     k = min(max(int(fz), 0), nz_ - 1)
     c0 = (i * ny_ + j) * nz_ + k
-    s = cell_sd[c0]
+    s = cell_sd[c0]  # s <= the centre's signed distance <= s_hi (equal for a still body)
+    s_hi = cell_sd_hi[c0]
     if s - half >= max_out:
         return far_out
-    if s + half <= -max_in:
+    if s_hi + half <= -max_in:
         return far_in
     # |s| > half: the whole cell is on the side of its centre (the signed distance is 1-Lipschitz),
     # so only triangles nearer than that side's bound matter; otherwise the point is within
     # 2 half <= margin of the surface and its own cell answers it exactly
     if g2 > 0.0 or s > half:
         cap = max_out
-    elif s < -half:
+    elif s_hi < -half:
         cap = max_in
     else:
         cap = np.inf
     if trust_sd and g2 == 0.0 and cell_start[c0] < cell_start[c0 + 1]:
         # exact centre distance (cells with triangles): |d(p)| <= |s| + half, a tight first bound
-        cap = min(cap, abs(s) + half * (1.0 + 1e-9))
+        cap = min(cap, max(abs(s), abs(s_hi)) + half * (1.0 + 1e-9))
     b = min(fx - i, i + 1 - fx, fy - j, j + 1 - fy, fz - k, k + 1 - fz) * h
     b = max(b, 0.0)
     # the own cell lists every triangle within margin + half of its centre, so an unlisted one is
@@ -295,7 +301,7 @@ def _query_point(px, py, pz, grid, trust_sd, max_out, max_in):
             break
         ring += 1
     if best_t < 0:
-        return far_in if s < 0.0 and g2 == 0.0 else far_out
+        return far_in if s_hi < 0.0 and g2 == 0.0 else far_out
     return _signed_result(px, py, pz, qx, qy, qz, best2, best_t, best_f, tris, tri_normals, tri_edges,
                           edge_normals, vert_normals)
 

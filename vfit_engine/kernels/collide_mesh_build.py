@@ -181,90 +181,115 @@ def bin_triangles(verts, tris, origin, dims, h, reach, pair_cell_out, pair_tri_o
     int
         Number of pairs (rerun with larger outputs if it exceeds ``cap``).
     """
-    ny_, nz_ = dims[1], dims[2]
-    inv_h = 1.0 / h
-    r2 = reach * reach
-    per_level = LEVELS / reach
-    eps = 1e-7 * h
-    cap = pair_cell_out.shape[0]
-    column = np.empty(nz_)
+    column = np.empty(dims[2])
+    no_stamp = np.empty(0, dtype=np.int32)
     n = 0
     for t in range(tris.shape[0]):
         a, b, c = tris[t, 0], tris[t, 1], tris[t, 2]
-        ax, ay, az = verts[a, 0], verts[a, 1], verts[a, 2]
-        bx, by, bz = verts[b, 0], verts[b, 1], verts[b, 2]
-        cx, cy, cz = verts[c, 0], verts[c, 1], verts[c, 2]
-        e0x, e0y, e0z = bx - ax, by - ay, bz - az
-        e1x, e1y, e1z = cx - bx, cy - by, cz - bz
-        e2x, e2y, e2z = ax - cx, ay - cy, az - cz
-        nx, ny, nz = e2y * e0z - e2z * e0y, e2z * e0x - e2x * e0z, e2x * e0y - e2y * e0x
-        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if ln > 0.0:
-            nx, ny, nz = nx / ln, ny / ln, nz / ln
-        # else a segment or a point: only the edge distances count
-        flat = -1.0 if ln > 0.0 else 1.0
-        m0x, m0y, m0z = e0y * nz - e0z * ny, e0z * nx - e0x * nz, e0x * ny - e0y * nx
-        m1x, m1y, m1z = e1y * nz - e1z * ny, e1z * nx - e1x * nz, e1x * ny - e1y * nx
-        m2x, m2y, m2z = e2y * nz - e2z * ny, e2z * nx - e2x * nz, e2x * ny - e2y * nx
-        l0 = e0x * e0x + e0y * e0y + e0z * e0z
-        l1 = e1x * e1x + e1y * e1y + e1z * e1z
-        l2 = e2x * e2x + e2y * e2y + e2z * e2z
-        i0 = 1.0 / l0 if l0 > 0.0 else 0.0
-        i1 = 1.0 / l1 if l1 > 0.0 else 0.0
-        i2 = 1.0 / l2 if l2 > 0.0 else 0.0
-        gx, gy, gz = (ax + bx + cx) / 3.0, (ay + by + cy) / 3.0, (az + bz + cz) / 3.0
-        rs = reach + eps + math.sqrt(max((ax - gx) ** 2 + (ay - gy) ** 2 + (az - gz) ** 2,
-                                         (bx - gx) ** 2 + (by - gy) ** 2 + (bz - gz) ** 2,
-                                         (cx - gx) ** 2 + (cy - gy) ** 2 + (cz - gz) ** 2))
-        slab = ln > 0.0 and abs(nz) > 1e-3
-        inv_nz = 1.0 / nz if slab else 0.0
-        # the bounding box grown by reach is tighter than the sphere for a long thin triangle
-        ia, ib = _axis_cells(max(gx - rs, min(ax, bx, cx) - reach - eps), min(gx + rs, max(ax, bx, cx) + reach + eps),
-                             origin[0], dims[0], inv_h)
-        ja, jb = _axis_cells(max(gy - rs, min(ay, by, cy) - reach - eps), min(gy + rs, max(ay, by, cy) + reach + eps),
-                             origin[1], dims[1], inv_h)
-        zmin, zmax = min(az, bz, cz) - reach - eps, max(az, bz, cz) + reach + eps
-        # z parts of the per-cell dot products (the x, y parts are fixed along a column)
-        e0zi, e1zi, e2zi = e0z * i0, e1z * i1, e2z * i2
-        for i in range(ia, ib + 1):
-            px = origin[0] + (i + 0.5) * h
-            rem_i = rs * rs - (px - gx) ** 2
-            if rem_i < 0.0:
+        n = _bin_triangle(verts[a, 0], verts[a, 1], verts[a, 2], verts[b, 0], verts[b, 1], verts[b, 2],
+                          verts[c, 0], verts[c, 1], verts[c, 2], t, origin, dims, h, reach, 0.0, LEVELS / reach,
+                          column, no_stamp, no_stamp, pair_cell_out, pair_tri_out, pair_level_out, n)
+    return n
+
+
+@njit(inline="always")
+def _bin_triangle(ax, ay, az, bx, by, bz, cx, cy, cz, t, origin, dims, h, reach, shift, per_level, column, stamp,
+                  slot, pair_cell_out, pair_tri_out, pair_level_out, n):
+    """The pairs of triangle ``t`` (corners a, b, c) for :func:`bin_triangles`, appended from pair ``n``;
+    returns the new count. A pair's level is that of its distance less ``shift`` (m, at least 0), with
+    ``per_level`` levels per metre.
+
+    With ``stamp`` and ``slot`` ((ncells,) int32, non-empty) a cell that already holds a pair of ``t``
+    (``stamp[cell] == t``, at ``slot[cell]``) keeps one pair at the lower level: a triangle binned in
+    several pieces (:mod:`.collide_mesh_sweep`) is listed once per cell.
+    """
+    ny_, nz_ = dims[1], dims[2]
+    inv_h = 1.0 / h
+    r2 = reach * reach
+    eps = 1e-7 * h
+    cap = pair_cell_out.shape[0]
+    dedupe = stamp.shape[0] > 0
+    e0x, e0y, e0z = bx - ax, by - ay, bz - az
+    e1x, e1y, e1z = cx - bx, cy - by, cz - bz
+    e2x, e2y, e2z = ax - cx, ay - cy, az - cz
+    nx, ny, nz = e2y * e0z - e2z * e0y, e2z * e0x - e2x * e0z, e2x * e0y - e2y * e0x
+    ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if ln > 0.0:
+        nx, ny, nz = nx / ln, ny / ln, nz / ln
+    # else a segment or a point: only the edge distances count
+    flat = -1.0 if ln > 0.0 else 1.0
+    m0x, m0y, m0z = e0y * nz - e0z * ny, e0z * nx - e0x * nz, e0x * ny - e0y * nx
+    m1x, m1y, m1z = e1y * nz - e1z * ny, e1z * nx - e1x * nz, e1x * ny - e1y * nx
+    m2x, m2y, m2z = e2y * nz - e2z * ny, e2z * nx - e2x * nz, e2x * ny - e2y * nx
+    l0 = e0x * e0x + e0y * e0y + e0z * e0z
+    l1 = e1x * e1x + e1y * e1y + e1z * e1z
+    l2 = e2x * e2x + e2y * e2y + e2z * e2z
+    i0 = 1.0 / l0 if l0 > 0.0 else 0.0
+    i1 = 1.0 / l1 if l1 > 0.0 else 0.0
+    i2 = 1.0 / l2 if l2 > 0.0 else 0.0
+    gx, gy, gz = (ax + bx + cx) / 3.0, (ay + by + cy) / 3.0, (az + bz + cz) / 3.0
+    rs = reach + eps + math.sqrt(max((ax - gx) ** 2 + (ay - gy) ** 2 + (az - gz) ** 2,
+                                     (bx - gx) ** 2 + (by - gy) ** 2 + (bz - gz) ** 2,
+                                     (cx - gx) ** 2 + (cy - gy) ** 2 + (cz - gz) ** 2))
+    slab = ln > 0.0 and abs(nz) > 1e-3
+    inv_nz = 1.0 / nz if slab else 0.0
+    # the bounding box grown by reach is tighter than the sphere for a long thin triangle
+    ia, ib = _axis_cells(max(gx - rs, min(ax, bx, cx) - reach - eps), min(gx + rs, max(ax, bx, cx) + reach + eps),
+                         origin[0], dims[0], inv_h)
+    ja, jb = _axis_cells(max(gy - rs, min(ay, by, cy) - reach - eps), min(gy + rs, max(ay, by, cy) + reach + eps),
+                         origin[1], dims[1], inv_h)
+    zmin, zmax = min(az, bz, cz) - reach - eps, max(az, bz, cz) + reach + eps
+    # z parts of the per-cell dot products (the x, y parts are fixed along a column)
+    e0zi, e1zi, e2zi = e0z * i0, e1z * i1, e2z * i2
+    for i in range(ia, ib + 1):
+        px = origin[0] + (i + 0.5) * h
+        rem_i = rs * rs - (px - gx) ** 2
+        if rem_i < 0.0:
+            continue
+        wax, wbx, wcx = px - ax, px - bx, px - cx
+        for j in range(ja, jb + 1):
+            py = origin[1] + (j + 0.5) * h
+            rem = rem_i - (py - gy) ** 2
+            if rem < 0.0:
                 continue
-            wax, wbx, wcx = px - ax, px - bx, px - cx
-            for j in range(ja, jb + 1):
-                py = origin[1] + (j + 0.5) * h
-                rem = rem_i - (py - gy) ** 2
-                if rem < 0.0:
-                    continue
-                sxy = nx * wax + ny * (py - ay)
-                ka, kb = _column_cells(gz - math.sqrt(rem), gz + math.sqrt(rem), zmin, zmax, slab, az, sxy, inv_nz,
-                                       reach + eps, origin[2], nz_, inv_h)
-                way, wby, wcy = py - ay, py - by, py - cy
-                t0 = (wax * e0x + way * e0y) * i0
-                t1 = (wbx * e1x + wby * e1y) * i1
-                t2 = (wcx * e2x + wcy * e2y) * i2
-                o0, o1, o2 = m0x * wax + m0y * way, m1x * wbx + m1y * wby, m2x * wcx + m2y * wcy
-                for k in range(ka, kb + 1):
-                    pz = origin[2] + (k + 0.5) * h
-                    waz, wbz, wcz = pz - az, pz - bz, pz - cz
-                    u = min(max(t0 + waz * e0zi, 0.0), 1.0)
-                    d0 = (wax - u * e0x) ** 2 + (way - u * e0y) ** 2 + (waz - u * e0z) ** 2
-                    u = min(max(t1 + wbz * e1zi, 0.0), 1.0)
-                    d1 = (wbx - u * e1x) ** 2 + (wby - u * e1y) ** 2 + (wbz - u * e1z) ** 2
-                    u = min(max(t2 + wcz * e2zi, 0.0), 1.0)
-                    d2 = (wcx - u * e2x) ** 2 + (wcy - u * e2y) ** 2 + (wcz - u * e2z) ** 2
-                    s = sxy + nz * waz
-                    o = max(o0 + m0z * waz, o1 + m1z * wbz, o2 + m2z * wcz, flat)
-                    column[k] = s * s if o <= 0.0 else min(d0, d1, d2)
-                base = (i * ny_ + j) * nz_
-                for k in range(ka, kb + 1):
-                    if column[k] <= r2:
-                        if n < cap:
-                            pair_cell_out[n] = base + k
-                            pair_tri_out[n] = t
-                            pair_level_out[n] = min(int(math.sqrt(column[k]) * per_level), LEVELS - 1)
-                        n += 1
+            sxy = nx * wax + ny * (py - ay)
+            ka, kb = _column_cells(gz - math.sqrt(rem), gz + math.sqrt(rem), zmin, zmax, slab, az, sxy, inv_nz,
+                                   reach + eps, origin[2], nz_, inv_h)
+            way, wby, wcy = py - ay, py - by, py - cy
+            t0 = (wax * e0x + way * e0y) * i0
+            t1 = (wbx * e1x + wby * e1y) * i1
+            t2 = (wcx * e2x + wcy * e2y) * i2
+            o0, o1, o2 = m0x * wax + m0y * way, m1x * wbx + m1y * wby, m2x * wcx + m2y * wcy
+            for k in range(ka, kb + 1):
+                pz = origin[2] + (k + 0.5) * h
+                waz, wbz, wcz = pz - az, pz - bz, pz - cz
+                u = min(max(t0 + waz * e0zi, 0.0), 1.0)
+                d0 = (wax - u * e0x) ** 2 + (way - u * e0y) ** 2 + (waz - u * e0z) ** 2
+                u = min(max(t1 + wbz * e1zi, 0.0), 1.0)
+                d1 = (wbx - u * e1x) ** 2 + (wby - u * e1y) ** 2 + (wbz - u * e1z) ** 2
+                u = min(max(t2 + wcz * e2zi, 0.0), 1.0)
+                d2 = (wcx - u * e2x) ** 2 + (wcy - u * e2y) ** 2 + (wcz - u * e2z) ** 2
+                s = sxy + nz * waz
+                o = max(o0 + m0z * waz, o1 + m1z * wbz, o2 + m2z * wcz, flat)
+                column[k] = s * s if o <= 0.0 else min(d0, d1, d2)
+            base = (i * ny_ + j) * nz_
+            for k in range(ka, kb + 1):
+                if column[k] <= r2:
+                    level = min(int(max(math.sqrt(column[k]) - shift, 0.0) * per_level), LEVELS - 1)
+                    cell = base + k
+                    if dedupe and stamp[cell] == t:
+                        at = slot[cell]
+                        if at < cap and level < pair_level_out[at]:
+                            pair_level_out[at] = level
+                        continue
+                    if dedupe:
+                        stamp[cell] = t
+                        slot[cell] = n
+                    if n < cap:
+                        pair_cell_out[n] = cell
+                        pair_tri_out[n] = t
+                        pair_level_out[n] = level
+                    n += 1
     return n
 
 

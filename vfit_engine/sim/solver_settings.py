@@ -28,7 +28,7 @@ class VerletSettings:
         Limit on the bend pairs (second neighbours): they may shorten freely (the cloth folds) but not
         lengthen by more than this without resistance, so folds modelled into the garment -- a turned
         hem, a collar, a lapel -- do not open out; beyond it they resist compliantly
-        (:data:`vfit_engine.sim.solver_verlet.BEND_LIMIT_SOFTNESS`). None: bend springs only.
+        (:data:`vfit_engine.sim.constraints.BEND_LIMIT_SOFTNESS`). None: bend springs only.
     shear_limit_deg : float or None
         Polygon corner angles change by at most this (Provot's shear limit, as angle constraints on
         ``Model.corners``). None: no shear limit, and the shear springs act as explicit springs.
@@ -46,6 +46,8 @@ class VerletSettings:
         Solve the bending hinges too stiff for the explicit step as compliant angle constraints, with the
         fabric's whole stiffness (else they are softened to the bound as the springs are: the drape then
         bends more easily than the fabric where its mesh is fine or the fabric stiff).
+    hinge_every : int
+        The hinge constraints are solved in every ``hinge_every``-th sweep and the last.
     """
 
     substeps: int = 8
@@ -60,10 +62,11 @@ class VerletSettings:
     relax_by_stiffness: bool = True
     stability_safety: float = 0.2
     implicit_hinges: bool = True
+    hinge_every: int = 2
 
     def __post_init__(self):
-        if int(self.substeps) < 1 or int(self.iterations) < 0:
-            raise ValueError("substeps must be >= 1 and iterations >= 0")
+        if int(self.substeps) < 1 or int(self.iterations) < 0 or int(self.hinge_every) < 1:
+            raise ValueError("substeps and hinge_every must be >= 1 and iterations >= 0")
         if len(self.gravity) != 3 or not all(math.isfinite(g) for g in self.gravity):
             raise ValueError("gravity must be three finite numbers")
         if not (self.air_damping >= 0 and self.stability_safety >= 0):

@@ -12,7 +12,8 @@
   stiff as it allows (:attr:`SolverVerlet.softened_fraction`). The margin is wide (0.2 of the bound)
   because the constraints below stiffen the system the explicit springs act in: at 0.5 they rang
   against them in cloth the body held stretched, and the drape never settled;
-* **constraints**, solved ``iterations`` times per substep (Gauss-Seidel; XPBD, Macklin et al. 2016;
+* **constraints** (built by :mod:`vfit_engine.sim.constraints`), solved ``iterations`` times per substep
+  (Gauss-Seidel; XPBD, Macklin et al. 2016;
   the bands are Provot's strain limits, Provot 1995), each holding a length (or an angle) inside a
   band and acting only outside it:
 
@@ -57,21 +58,11 @@ import math
 
 import numpy as np
 
+from vfit_engine.sim.constraints import (CONSTRAINT_ARRAYS, KIND_ANGLE, KIND_BEND, KIND_SHEAR, KIND_STRETCH,
+                                         build_constraints, corner_angle)
 from vfit_engine.sim.partition import halves, segment_of, segments
 from vfit_engine.sim.solver_settings import ContactSettings, VerletSettings  # noqa: F401  (the solver's API)
 from vfit_engine.sim.state import State
-
-
-#: Relaxation weights: stiffness / (this percentile of the family's stiffnesses), clipped to
-#: [RELAX_MIN, 1] (a few very stiff constraints must not make the rest converge slowly).
-RELAX_PERCENTILE = 90.0
-RELAX_MIN = 0.1
-#: Beyond its limit a bend pair resists as a yarn this many times softer than the fabric's stretch
-#: (compliant, not rigid): folds modelled into the garment still hold (nothing but the weak bending
-#: springs resists their opening otherwise), while where the body forces the cloth wider the pairs
-#: stretch with it instead of a rigid limit fighting the body's push (a top made tight over a bust
-#: jittered at the underbust and never settled).
-BEND_LIMIT_SOFTNESS = 10.0
 
 
 def _stable_scale(inv_mass, ksum, dsum, dt, safety):
@@ -81,20 +72,6 @@ def _stable_scale(inv_mass, ksum, dsum, dt, safety):
     scale = np.ones(inv_mass.shape[0])
     np.divide(4.0 * safety, demand, out=scale, where=demand > 4.0 * safety)
     return scale
-
-
-def _corner_angle(pos, ends, corner):
-    """(k,) float64, radians: the angle at ``corner`` (k,) between ``ends`` (k, 2)."""
-    u = pos[ends[:, 0]] - pos[corner]
-    w = pos[ends[:, 1]] - pos[corner]
-    return np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), np.einsum("ij,ij->i", u, w))
-
-
-#: Constraint kinds (``SolverVerlet._c_kind``).
-KIND_STRETCH, KIND_BEND, KIND_ANGLE, KIND_SHEAR = 0, 1, 2, 3
-#: The solver's per-constraint arrays, all in sweep order.
-CONSTRAINT_ARRAYS = ("_c_i", "_c_j", "_c_corner", "_c_lo", "_c_hi", "_t_lo", "_t_hi", "_c_alpha", "_c_relax",
-                     "_c_kind", "_c_rest")
 
 
 def _empty_grid():
@@ -148,8 +125,11 @@ class SolverVerlet:
         self._k_inv_mass = np.ascontiguousarray(self._inv_mass[self._order])
         self._x, self._xp = np.zeros((n, 3)), np.zeros((n, 3))
         self._k_pins = np.ascontiguousarray(self._rank[model.pin_indices])
-        self._counts = np.zeros((3, 4), dtype=np.int64)
-        self._build_constraints()
+        self._counts = np.zeros((3, 5), dtype=np.int64)
+        for name, values in build_constraints(model, self.settings).items():
+            setattr(self, name, values)
+        self._lam = np.zeros(self._c_i.size)
+        self._active = np.zeros(self._c_i.size, dtype=np.int64)
         self.points = points if points is not None else contact_points(np.zeros(0, np.int64), np.zeros(1, np.int64),
                                                                        model.rest_pos, surface=False)
         self._set_contacts(body, spheres)
@@ -157,75 +137,11 @@ class SolverVerlet:
         self._pin_from = np.zeros((model.pin_count, 3))
         self._const_dt = None
         self._f = np.zeros((n, 3))
-        self._h_lam = np.zeros(0 if model.hinges is None else model.hinges.count)
-        self._h_explicit = np.zeros(self._h_lam.size, dtype=bool)
+        # the hinge constraints' multipliers and active list (_prepare sizes them)
+        self._h_lam, self._h_active = np.zeros(0), np.zeros(0, np.int64)
+        self._h_explicit = np.zeros(0 if model.hinges is None else model.hinges.count, dtype=bool)
 
     # -- set-up -------------------------------------------------------------------------
-    def _build_constraints(self):
-        """The constraints: stretch (structural springs), bend limits, shear limits (corner angles) and
-        the compliant shear springs that restore the corners' angles."""
-        from vfit_engine.garment.springs import BEND, SHEAR, STRUCTURAL
-
-        m, st = self.model, self.settings
-        parts = [self._distance_constraints(np.flatnonzero((m.spring_type == STRUCTURAL) & (m.spring_k > 0)),
-                                            KIND_STRETCH)]
-        if st.bend_limit is not None:
-            parts.append(self._distance_constraints(np.flatnonzero(m.spring_type == BEND), KIND_BEND))
-        if st.shear_limit_deg is not None and m.corners.size:
-            parts.append(self._angle_constraints())
-            if st.shear_restore > 0:
-                parts.append(self._distance_constraints(np.flatnonzero((m.spring_type == SHEAR) & (m.spring_k > 0)),
-                                                        KIND_SHEAR))
-        for name in CONSTRAINT_ARRAYS:
-            setattr(self, name, np.ascontiguousarray(np.concatenate([p[name] for p in parts])))
-        self._lam = np.zeros(self._c_i.size)
-        self._active = np.zeros(self._c_i.size, dtype=np.int64)
-
-    def _distance_constraints(self, springs, kind):
-        """Constraint arrays (a dict) of the model springs ``springs`` of one ``kind``."""
-        m, st = self.model, self.settings
-        rest = m.spring_rest[springs]
-        k = m.spring_k[springs]
-        lo, hi, alpha, relax = np.zeros(springs.size), rest.copy(), np.zeros(springs.size), np.ones(springs.size)
-        if kind == KIND_STRETCH:
-            lo, hi, alpha = rest * (1.0 - st.compression), rest * (1.0 + st.slack), 1.0 / k
-        elif kind == KIND_BEND:
-            hi = rest * (1.0 + st.bend_limit)  # shortening (folding) is free, unfolding limited
-            alpha = BEND_LIMIT_SOFTNESS * rest / self._stretch_rigidity()
-        else:  # a shear spring pulling its quad back to shape, weighted lightly where it conflicts
-            # a band of width 0 (a spring both ways): with lo = 0 it could only pull its long diagonal
-            # in, which the quad satisfies by shrinking inside the stretch's free compression band
-            # while staying sheared (a quad sheared 8 degrees stalled at 3.7, its edges 3.7 % short)
-            lo, alpha, relax = rest.copy(), 1.0 / k, np.full(springs.size, st.shear_restore)
-        if st.relax_by_stiffness and kind == KIND_STRETCH and springs.size:
-            # Gauss-Seidel settles a conflict where sum relax_e C_e u_e = 0 at every vertex: relax
-            # proportional to the stiffness makes that the elastic balance sum k_e C_e u_e = 0
-            relax = np.clip(k / np.percentile(k, RELAX_PERCENTILE), RELAX_MIN, 1.0)
-        n = springs.size
-        return dict(_c_i=m.spring_indices[springs, 0], _c_j=m.spring_indices[springs, 1],
-                    _c_corner=np.full(n, -1, np.int64), _c_lo=lo, _c_hi=hi, _t_lo=np.zeros(n), _t_hi=np.zeros(n),
-                    _c_alpha=alpha, _c_relax=relax, _c_kind=np.full(n, kind, np.int64), _c_rest=rest)
-
-    def _stretch_rigidity(self):
-        """The fabric's typical stretch rigidity k l (N): the median over its structural springs."""
-        from vfit_engine.garment.springs import STRUCTURAL
-
-        m = self.model
-        sel = (m.spring_type == STRUCTURAL) & (m.spring_k > 0)
-        return float(np.median(m.spring_k[sel] * m.spring_rest[sel])) if np.any(sel) else math.inf
-
-    def _angle_constraints(self):
-        """Constraint arrays of the polygon corners: each angle within shear_limit_deg of its rest."""
-        m = self.model
-        c = m.corners
-        n = c.shape[0]
-        angle = _corner_angle(m.rest_pos, c[:, [0, 2]], c[:, 1])
-        lim = math.radians(self.settings.shear_limit_deg)
-        z = np.zeros(n)
-        return dict(_c_i=c[:, 0], _c_j=c[:, 2], _c_corner=c[:, 1], _c_lo=z, _c_hi=z,
-                    _t_lo=np.maximum(angle - lim, 0.0), _t_hi=np.minimum(angle + lim, math.pi), _c_alpha=z,
-                    _c_relax=np.ones(n), _c_kind=np.full(n, KIND_ANGLE, np.int64), _c_rest=angle)
-
     def _set_contacts(self, body, spheres):
         p = self.points.count
         self.body = body
@@ -307,10 +223,31 @@ class SolverVerlet:
         self._c_hi[dist] = np.maximum(self._c_hi[dist], length)
         self._c_lo[dist] = np.minimum(self._c_lo[dist], length)
         ang = both & (self._c_kind == KIND_ANGLE)
-        angle = _corner_angle(pos, np.stack([self._c_i[ang], self._c_j[ang]], axis=1), self._c_corner[ang])
+        angle = corner_angle(pos, np.stack([self._c_i[ang], self._c_j[ang]], axis=1), self._c_corner[ang])
         self._t_lo[ang] = np.minimum(self._t_lo[ang], angle)
         self._t_hi[ang] = np.maximum(self._t_hi[ang], angle)
         self._const_dt = None
+
+    # -- a moving body (issue 13: added by the animation's work; vfit_engine.animate) -------------------------
+    def body_moved(self, distance, spheres=None):
+        """The body moved since the last step: take its grid again (``self.body.grid``; a moving body's collider
+        makes one per frame) and, given ``spheres`` (S, 4) m, the sphere colliders' new centres and radii.
+
+        ``distance`` (m) bounds how far the body moved: a number, or a function of points (k, 3) m giving the
+        bound near each (the contact points are looked up where they were last queried). A point proven clear
+        of the body is proven that much less clear, and one that was touching it queries it afresh where the
+        body moved more than ``contact.reuse`` (the tangent plane it kept moved with the body).
+        """
+        if self.body is not None:
+            self._grid = self.body.grid
+        if spheres is not None:
+            spheres = np.array(spheres, dtype=np.float64, order="C")  # its own copy
+            if spheres.shape != self._spheres.shape:
+                raise ValueError(f"spheres must have shape {self._spheres.shape}, got {spheres.shape}")
+            self._spheres = spheres
+        d = distance(self._p_last) if callable(distance) else float(distance)
+        self._d_last -= d
+        self._d_last[(self._d_last < self._pt_skin + self.contact.reach) & (d > self.contact.reuse)] = -math.inf
 
     # -- constants ------------------------------------------------------------------------
     def effective_constants(self, dt):
@@ -425,9 +362,13 @@ class SolverVerlet:
             hi, rest = m.hinges.indices, m.hinges.rest_angle
         else:
             hi, rest = np.zeros((0, 4), np.int64), np.zeros(0)
-        self._explicit_hinges = (hi, hk, hkd, rest)
-        h_order, h_seg = segments(segment_of(self._half, *hi.T)) if hi.size else (np.zeros(0, np.int64),
-                                                                                   np.zeros(4, np.int64))
+        force = np.flatnonzero((hk > 0) | (hkd > 0))  # the hinges that act as forces, and the constraints
+        held = np.flatnonzero(h_alpha > 0)
+        self._explicit_hinges = (hi[force], hk[force], hkd[force], rest[force])
+        h_order, h_seg = self._hinge_segments(hi, force)
+        hc_order, hc_seg = self._hinge_segments(hi, held)
+        if self._h_lam.size != held.size:
+            self._h_lam, self._h_active = np.zeros(held.size), np.zeros(held.size, np.int64)
 
         def arr(a, order):
             return np.ascontiguousarray(a[order])
@@ -439,9 +380,17 @@ class SolverVerlet:
             arr(self._c_relax, c_order), arr(np.where(corner >= 0, rank[np.maximum(corner, 0)], -1), c_order),
             arr(np.cos(self._t_lo), c_order), arr(np.cos(self._t_hi), c_order),
             arr(self._c_kind == KIND_SHEAR, c_order), sp_seg, c_seg, arr(rank[hi], h_order), arr(hk, h_order),
-            arr(hkd, h_order), arr(rest, h_order), h_seg, arr(h_alpha, h_order))
+            arr(hkd, h_order), arr(rest, h_order), h_seg, arr(rank[hi], hc_order), arr(h_alpha, hc_order),
+            arr(rest, hc_order), hc_seg)
         self._c_air = 1.0 - math.exp(-self.settings.air_damping * dt)
         self._const_dt = dt
+
+    def _hinge_segments(self, hinge_indices, chosen):
+        """The hinges ``chosen`` (k,) int64 in the kernel's segment order, and the segments' bounds (4,)."""
+        if not chosen.size:
+            return chosen, np.zeros(4, np.int64)
+        order, seg = segments(segment_of(self._half, *hinge_indices[chosen].T))
+        return chosen[order], seg
 
     # -- state ----------------------------------------------------------------------------
     def init_state(self, dt, pos=None, vel=None):
@@ -505,11 +454,11 @@ class SolverVerlet:
         c = self.contact
         prm = StepParams(dt, self._c_air, int(self.settings.iterations), float(c.reach), float(c.friction),
                          float(self.max_push), 1.0 - math.exp(-float(c.damping) * dt), float(c.reuse),
-                         self.body is not None)
+                         self.body is not None, int(self.settings.hinge_every))
         pts = ContactPoints(self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._p_seg)
         cst = ContactState(self._p_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_list, self._push,
                            self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2, self._c_live,
-                           self._counts, self._hot, self._h_lam)
+                           self._counts, self._hot, self._h_lam, self._h_active)
         x, xp = self._x, self._xp
         np.take(state.pos, self._order, axis=0, out=x)
         np.take(state.pos_prev, self._order, axis=0, out=xp)

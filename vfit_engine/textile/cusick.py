@@ -113,8 +113,9 @@ def count_nodes(r, prominence=PROMINENCE):
     return int(np.count_nonzero((peaks >= n) & (peaks < 2 * n)))
 
 
-def drape_test(material, edge=0.01, seed=0, max_time=8.0, still=5e-4, air_damping=8.0, settings=None):
-    """The Cusick test of ``material`` meshed at ``edge`` (m) (module docstring).
+def drape_test(material, edge=0.01, seed=0, max_time=8.0, still=5e-4, air_damping=8.0, settings=None, dt=None):
+    """The Cusick test of ``material`` meshed at ``edge`` (m) (module docstring), at the step ``dt`` (s; default the
+    largest at which every hinge is explicit, at most 1/240 s).
 
     Returns
     -------
@@ -130,7 +131,7 @@ def drape_test(material, edge=0.01, seed=0, max_time=8.0, still=5e-4, air_dampin
     t0 = time.perf_counter()
     model, tris, flat, sd = specimen_model(material, edge, seed)
     solver = SolverVerlet(model, settings or VerletSettings(air_damping=air_damping))
-    state, dt, t, settled = fall_still(solver, 1.0 / 240.0, max_time, still, calm=10, after=0.5)
+    state, dt, t, settled = fall_still(solver, 1.0 / 240.0, max_time, still, calm=10, after=0.5, dt=dt)
     pos = np.r_[state.pos, [[0.0, 0.0, 0.0]]]  # the support's centre: the fan of tris covering it
     s = shadow_area(pos, tris)
     return dict(drape_coefficient=(s - sd) / (flat - sd), nodes=count_nodes(outline(pos)), shadow_m2=s,

@@ -1,0 +1,475 @@
+"""Animated fitting: the garment draped at rest, then simulated on the body moving through a clip.
+
+:func:`run_animation` takes a drape's set-up and its settled result (:func:`vfit_engine.drape.prepare_drape`,
+:func:`vfit_engine.drape.run_drape`: the drape path ``vfit drape`` runs) and a clip
+(:mod:`vfit_engine.animate.motion`):
+
+1. **poses**: the body and the garment's pins in every animation frame, the clip blended in from the A pose
+   over ``blend_s`` (:class:`~vfit_engine.animate.motion.Poser`);
+2. **collider**: the exact body surface near the garment (the triangles within ``near`` of the draped
+   cloth), moving (:class:`vfit_engine.collide.moving_body.MovingBodyCollider`): one grid per frame, the
+   surface where it is at every substep; or shapes fitted to the body that follow its bones
+   (``fitted``: spheres along the bones, :func:`fitted_spheres`);
+3. **the cloth**: the drape's solver (:func:`vfit_engine.drape.loop.build_solver`: the same constraints,
+   sweeps and openings) from the settled drape; each frame is ``substeps`` substeps of the drape's step, the
+   body moved between them (``body_every``) and the pins moved with it;
+4. **figures** of every frame (:func:`frame_figures`): the cloth surface against the body (the drape's
+   lattice of samples), yarn strain against the garment as given, contact pressure; and the time each part
+   took.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vfit_engine.errors import InputError
+
+#: Colliders of an animation: the exact body near the garment, or spheres fitted to the body that follow its
+#: bones (along the bones, or the medial cover).
+COLLIDERS = ("mesh", "bone-spheres", "spheres")
+
+
+@dataclass(frozen=True)
+class AnimateSettings:
+    """Settings of an animation (:func:`run_animation`).
+
+    Attributes
+    ----------
+    fps : float, 1/s
+        Animation frames per second (the frames written, the GLB's rate).
+    frames : int
+        Frames simulated after the rest drape.
+    blend_s : float, s
+        The clip is blended in from the A pose over this time (a smoothstep).
+    body_every : int
+        Substeps between two moves of the body (1: the body is where it is at every substep).
+    max_push : float, m
+        Longest push out of the body per substep: the body moves the cloth by pushing it, up to this much
+        each substep (a walking shin moves ~6 mm per substep of 1/480 s).
+    max_speed : float, m/s
+        Cloth faster than this after a body move is slowed to it (its previous position moved up): cloth
+        caught where the body closes on itself (the crease of a hip bent to sitting) is pushed from both
+        sides and, unchecked, runs away (tens of m/s). A walking foot moves ~5 m/s; the report counts the
+        vertices slowed in each frame.
+    near : float, m
+        The exact collider holds the body parts within this of the draped garment (:func:`near_triangles`).
+    surface_spacing : float or None, m
+        Spacing of the contact points over the cloth's triangles while the body moves (None: the drape's,
+        15 mm): a moving body pushes the cloth between them more than a still one rests on it (the suit's
+        walk, 50 frames: 15 of 60 frames 2.0-2.9 mm deep at 15 mm, none over 1.43 mm at 10 mm).
+    skinning : {"dqs", "lbs"}
+    collider : {"mesh", "bone-spheres", "spheres"}
+    """
+
+    fps: float = 30.0
+    frames: int = 60
+    blend_s: float = 0.5
+    body_every: int = 1
+    max_push: float = 0.02
+    max_speed: float = 8.0
+    near: float = 0.05
+    surface_spacing: float | None = 0.010
+    skinning: str = "dqs"
+    collider: str = "mesh"
+
+    def __post_init__(self):
+        if not (math.isfinite(self.fps) and 1.0 <= self.fps <= 240.0):
+            raise InputError(f"fps must be 1..240, got {self.fps!r}")
+        if int(self.frames) < 1 or int(self.body_every) < 1:
+            raise InputError("frames and body_every must be >= 1")
+        for name in ("blend_s", "max_push", "near"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise InputError(f"animate setting {name} must be >= 0")
+        if self.collider not in COLLIDERS:
+            raise InputError(f"unknown animation collider {self.collider!r}; use {' or '.join(COLLIDERS)}")
+
+
+@dataclass
+class AnimationResult:
+    """What an animation produced.
+
+    Attributes
+    ----------
+    pos : (n, 3) float64, m
+        The cloth at the last frame.
+    frames : int
+    figures : list of dict
+        :func:`frame_figures` of every frame (frame 0: the rest drape).
+    timings : dict
+        Seconds: ``posing`` (all frames' bodies and pins), ``collision`` (the collider's grids and surface per
+        substep), ``cloth`` (the solver), ``figures``, and their sum ``simulation`` (posing + collision +
+        cloth).
+    info : dict
+        ``substeps`` per frame, the collider's figures, the solver's ``contact_queries``.
+    settled : bool or None
+        For a clip that ends in a still pose: the cloth had come to rest by the last frame (the drape's
+        settle test on the frames after the clip ended); None for a clip still moving.
+    """
+
+    pos: np.ndarray
+    frames: int
+    figures: list
+    timings: dict
+    info: dict = field(default_factory=dict)
+    settled: bool | None = None
+
+
+def smoothstep(x):
+    """0 -> 1 with zero slope at both ends (the blend's weight)."""
+    x = min(max(float(x), 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def pose_frames(poser, clip, settings):
+    """Bodies (f + 1, 13380, 3) m, pins (f + 1, p, 3) m, the bones' skinning matrices (f + 1, b, 3, 4) and the
+    travel (f + 1, 3) m of frames 0..f: the clip at ``k / fps``, blended in.
+
+    The root's vertical motion (a walk's bob) moves the body the cloth is simulated on; its horizontal path is
+    the travel, added to what is written: the cloth is simulated in the frame that moves along it, which for a
+    steady walk is the same physics (Galilean; the solver's air damping is numerical, not wind), and leaves out
+    the path's accelerations (starting, stopping, turning)."""
+    n = int(settings.frames) + 1
+    bodies, pins, mats, travel = [], [], [], []
+    for k in range(n):
+        t = k / settings.fps
+        w = smoothstep(t / settings.blend_s) if settings.blend_s > 0 else 1.0
+        rot, root = clip.sample(t, blend=w)
+        m = poser.matrices(rot, np.array([0.0, root[1], 0.0]))
+        b, p = poser.skin_all(m)
+        bodies.append(b)
+        pins.append(p)
+        mats.append(m)
+        travel.append([root[0], 0.0, root[2]])
+    return np.stack(bodies), np.stack(pins), np.stack(mats), np.array(travel)
+
+
+#: Body parts (:data:`vfit_engine.body.segment.PARTS`) of many small triangles: only their triangles near the
+#: garment collide; of the other parts, any the garment comes near collides whole.
+DETAIL_PARTS = ("head", "hand.L", "hand.R", "foot.L", "foot.R")
+
+
+def near_triangles(body_verts, tris, cloth, near, parts=None):
+    """(t,) bool: the triangles the garment at ``cloth`` collides with: those with a corner within ``near`` (m)
+    of a cloth vertex and, given the body ``parts`` ((v,) int, :func:`vfit_engine.body.segment.skin_parts`),
+    every triangle of a part (not one of :data:`DETAIL_PARTS`) that has such a triangle.
+
+    A part is taken whole because a moving part comes to the cloth where it was far at rest (a thigh rising
+    under a skirt as its wearer sits down); where a surface is cut open its inside and outside are not told
+    apart, and cloth there would be pushed the wrong way. The detail parts (head, hands, feet: 70 % of the
+    triangles) keep only their near triangles, cut where they are ``near`` from the cloth."""
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(cloth).query(body_verts, distance_upper_bound=near)
+    close = np.isfinite(d)[tris].any(axis=1)
+    if parts is None:
+        return close
+    from vfit_engine.body.segment import PARTS
+
+    part = np.asarray(parts)[tris[:, 0]]
+    whole = np.setdiff1d(np.unique(part[close]), [PARTS.index(p) for p in DETAIL_PARTS])
+    return close | np.isin(part, whole)
+
+
+def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=None, on_frame=None):
+    """Simulate the garment of ``setup`` (settled at ``rest_pos``) on its body moving through ``clip``.
+
+    Parameters
+    ----------
+    setup : DrapeSetup
+        The drape's set-up (its body is the body animated; its pins follow the body).
+    rest_pos : (n, 3) float64, m
+        The settled drape.
+    clip : Clip
+    model : BodyModel
+    settings : AnimateSettings or None
+    drape_settings : DrapeSettings or None
+        The drape's (solver, contacts, step).
+    on_frame : callable or None
+        ``on_frame(k, body, pos, figures, travel)`` for the rest drape (``k`` = 0) and after each frame
+        (``body`` (13380, 3) and ``pos`` (n, 3) m are live arrays: copy them to keep them; ``travel`` (3,) m: the
+        horizontal path to add to them, :func:`pose_frames`).
+
+    Returns
+    -------
+    AnimationResult
+
+    Raises
+    ------
+    DrapeDiverged
+        The cloth blew up (NaN or runaway speed); the last good frame is kept in the exception.
+    """
+    from vfit_engine.animate.motion import Poser
+    from vfit_engine.drape.loop import DrapeDiverged, build_solver
+    from vfit_engine.drape.settings import DrapeSettings
+
+    st = settings or AnimateSettings()
+    dst = drape_settings or DrapeSettings()
+    timings = dict(setup=0.0, posing=0.0, collision=0.0, cloth=0.0, figures=0.0)
+    t0 = time.perf_counter()
+    rest_pos = np.ascontiguousarray(rest_pos, dtype=np.float64)
+    pins = setup.pins.indices
+    poser = Poser(model, setup.body.verts, pin_points=rest_pos[pins] if pins.size else None, method=st.skinning)
+    t1 = time.perf_counter()
+    bodies, pin_pos, mats, travel = pose_frames(poser, clip, st)
+    timings["posing"] = time.perf_counter() - t1
+    body = _Body(setup, model, bodies, mats, rest_pos, st, dst)
+    moving = dataclasses.replace(setup, collider=body.collider) if st.collider == "mesh" else \
+        dataclasses.replace(setup, collider_kind="spheres", spheres=body.spheres.at(0, 0.0))
+    if st.surface_spacing is not None:
+        dst = dataclasses.replace(dst, surface_spacing=float(st.surface_spacing))
+    _, solver = build_solver(moving, dst)
+    sub_dt = 1.0 / (dst.fps * dst.solver.substeps)
+    substeps = max(int(round(1.0 / (st.fps * sub_dt))), 1)
+    chunks = max(substeps // int(st.body_every), 1)
+    per_chunk = substeps // chunks
+    frame_dt = substeps * sub_dt
+    state = solver.init_state(sub_dt, pos=rest_pos)
+    solver.max_push = st.max_push
+    timings["setup"] = time.perf_counter() - t0 - timings["posing"]
+    figures = [frame_figures(setup, body, rest_pos)]
+    figures[0]["slowed_vertices"] = 0
+    if on_frame is not None:
+        on_frame(0, bodies[0], rest_pos, figures[0], travel[0])
+    last_good = rest_pos.copy()
+    step = np.zeros(len(rest_pos))
+    for k in range(1, int(st.frames) + 1):
+        slowed = _simulate_frame(k, body, solver, state, pin_pos if pins.size else None, chunks, per_chunk * sub_dt,
+                                 per_chunk, st.max_speed, step, timings)
+        speed = _fastest(state, step)
+        if not (math.isfinite(speed) and speed <= dst.diverge_speed):
+            what = "NaN/infinite positions" if not math.isfinite(speed) else f"a vertex at {speed:.3g} m/s"
+            exc = DrapeDiverged(f"the animation diverged at frame {k} ({what}); last good frame {k - 1}",
+                                frame=k, last_good=last_good.copy(), last_good_frame=k - 1)
+            exc.figures, exc.body = figures, bodies[k - 1]  # what the frames so far measured
+            raise exc
+        np.copyto(last_good, state.pos)
+        t0 = time.perf_counter()
+        if body.spheres is not None:  # the exact body is still what each frame is judged against
+            body.advance(k)
+            body.collider.at(1.0)
+        figures.append(frame_figures(setup, body, state.pos))
+        figures[-1]["slowed_vertices"] = slowed
+        timings["figures"] += time.perf_counter() - t0
+        if on_frame is not None:
+            on_frame(k, bodies[k], state.pos, figures[-1], travel[k])
+    timings["simulation"] = timings["posing"] + timings["collision"] + timings["cloth"]
+    info = dict(substeps=substeps, substep_s=sub_dt, frame_s=frame_dt, body_moves_per_frame=chunks,
+                contact_queries=int(solver.contact_queries), collider=body.describe(), clip=clip.description)
+    return AnimationResult(state.pos.copy(), int(st.frames), figures, timings, info,
+                           _settled(clip, figures, st, dst))
+
+
+def _simulate_frame(k, body, solver, state, pin_pos, chunks, chunk_dt, per_chunk, max_speed, scratch, timings):
+    """Frame ``k``: the body's grid for the frame, then ``chunks`` times the body moved on (and the pins with
+    it) and ``per_chunk`` substeps of the cloth; returns the vertices slowed to ``max_speed``."""
+    t0 = time.perf_counter()
+    if body.spheres is None:
+        body.advance(k)
+    timings["collision"] += time.perf_counter() - t0
+    slowed = 0
+    for c in range(chunks):
+        s = (c + 1) / chunks
+        t0 = time.perf_counter()
+        moved, spheres = body.at(k, s)
+        solver.body_moved(moved, spheres)
+        t1 = time.perf_counter()
+        if pin_pos is not None:
+            state.pin_target = pin_pos[k - 1] + s * (pin_pos[k] - pin_pos[k - 1])
+        solver.step_frame(state, chunk_dt, substeps=per_chunk)
+        slowed += _limit_speed(state, max_speed, scratch)
+        timings["collision"] += t1 - t0
+        timings["cloth"] += time.perf_counter() - t1
+    return slowed
+
+
+def _limit_speed(state, top, scratch):
+    """Slow the vertices faster than ``top`` (m/s) over the last substep to it; returns how many."""
+    d = state.pos - state.pos_prev
+    np.sqrt(np.einsum("ij,ij->i", d, d), out=scratch)
+    fast = scratch > top * state.dt
+    if not fast.any():
+        return 0
+    state.pos_prev[fast] = state.pos[fast] - d[fast] * (top * state.dt / scratch[fast])[:, None]
+    return int(np.count_nonzero(fast))
+
+
+def _fastest(state, scratch):
+    """Fastest vertex over the last substep, m/s (inf for non-finite positions)."""
+    d = state.pos - state.pos_prev
+    np.sqrt(np.einsum("ij,ij->i", d, d), out=scratch)
+    top = float(scratch.max()) if scratch.size else 0.0
+    return top / state.dt if math.isfinite(top) else math.inf
+
+
+def _settled(clip, figures, st, dst):
+    """For a clip that ends still: whether the cloth was at rest over the last frames (the drape's settle test:
+    for ``settle_frames`` frames at most ``settle_share`` of the vertices moved more than ``settle_step`` per
+    frame, none more than ``settle_max_step``); None when the clip still moves at the end."""
+    end = clip.duration + st.blend_s
+    if clip.looping or st.frames / st.fps < end:
+        return None
+    tail = [f for f in figures[1:] if f["time_s"] > end][-int(dst.settle_frames):]
+    if len(tail) < int(dst.settle_frames):
+        return False
+    return all(f["share_moving"] <= dst.settle_share and f["max_step_mm"] <= 1000 * dst.settle_max_step for f in tail)
+
+
+def frame_figures(setup, body, pos):
+    """The figures of one frame: the cloth surface against the body (``surface_inside_percent``,
+    ``surface_max_depth_mm``, ``surface_deeper_than_2mm``: :func:`vfit_engine.drape.metrics.surface_penetration`),
+    the yarn strain against the garment as given (``p99_strain``, ``max_strain``), the largest contact pressure
+    (``pressure_max_kpa``, :func:`vfit_engine.fit.maps.contact_pressure`) and how far the cloth moved since
+    the last frame (``max_step_mm``, ``share_moving``)."""
+    from vfit_engine.drape.metrics import surface_penetration, yarn_strain
+    from vfit_engine.fit.maps import CONTACT_MM, contact_pressure
+
+    mesh = setup.garment.mesh
+    body.metrics_collider.settle_bounds()  # exact centre distances now: points clear of the body are dismissed
+    out = surface_penetration(body.metrics_collider, pos, mesh.triangles())
+    strain = yarn_strain(mesh, pos)
+    d, _, normal, tri = body.metrics_collider.query(pos, max_out=CONTACT_MM / 1000.0, max_in=np.inf)
+    contact = (d <= CONTACT_MM / 1000.0) & (tri >= 0)
+    mat = setup.material
+    pressure = contact_pressure(mesh, pos, mat.stretch_stiffness, mat.areal_density, normal, contact)
+    step = np.linalg.norm(pos - body.last_pos, axis=1) if body.last_pos is not None else np.zeros(len(pos))
+    body.last_pos = pos.copy()
+    out.update(p99_strain=strain["p99_strain"], max_strain=strain["max_strain"],
+               pressure_max_kpa=float(pressure.max()) if pressure.size else 0.0, time_s=body.time,
+               max_step_mm=1000.0 * float(step.max()) if step.size else 0.0,
+               share_moving=float(np.mean(step > body.settle_step)) if step.size else 0.0)
+    return out
+
+
+class _Body:
+    """The moving body as the loop needs it: the exact collider (moved every substep, or only at each frame's
+    end to judge it when the cloth meets spheres) and the sphere colliders along the bones."""
+
+    def __init__(self, setup, model, bodies, mats, rest_pos, st, dst):
+        from vfit_engine.collide.moving_body import MovingBodyCollider
+
+        self.bodies, self.st = bodies, st
+        self.tris = model.body_tris
+        self.time = 0.0
+        self.last_pos = None
+        self.settle_step = dst.settle_step
+        lo, hi = bodies.reshape(-1, 3).min(axis=0), bodies.reshape(-1, 3).max(axis=0)
+        active = near_triangles(bodies[0], self.tris, rest_pos, st.near, setup.body_parts)
+        self.collider = MovingBodyCollider(bodies[0], self.tris, box=(lo, hi), active=active)
+        self.metrics_collider = self.collider
+        self.spheres = None if st.collider == "mesh" else BoneSpheres.fitted(setup.body, model, mats, dst,
+                                                                                st.collider)
+
+    def advance(self, k):
+        self.collider.advance(self.bodies[k])
+
+    def at(self, k, s):
+        """Put the body at time ``s`` of frame ``k``: (how far it moved at most (m), sphere colliders or None)."""
+        self.time = (k - 1 + s) / self.st.fps
+        if self.spheres is not None:
+            return 0.0, self.spheres.at(k, s)
+        self.collider.at(s)
+        return self.collider.motion_bound, None
+
+    def describe(self):
+        c = self.collider
+        out = dict(kind=self.st.collider, near_m=self.st.near, active_triangles=int(c.active.sum()),
+                   triangles=int(len(c.active)), cell_m=c.cell, margin_m=c.margin, piece_m=c.piece,
+                   grid_cells=int(c.ncells), pairs_last_frame=int(c.grid.cell_tris.size),
+                   side_queries=int(c.queried_sides), seconds={k: round(v, 4) for k, v in c.timings.items()})
+        if self.spheres is not None:
+            out["spheres"] = int(len(self.spheres.radii))
+        return out
+
+
+class BoneSpheres:
+    """Sphere colliders fitted to the body at rest that follow its bones: each centre moves rigidly with its
+    bone's skinning matrix, and between two frames along the straight line.
+
+    ``kind`` ``"bone-spheres"``: spheres along the bones (:func:`vfit_engine.collide.bone_spheres.
+    fit_bone_spheres`), each on its bone; ``"spheres"``: the greedy medial cover
+    (:func:`vfit_engine.collide.auto_spheres.fit_spheres`), each following the bone that carries most of the
+    skin nearest its centre.
+
+    Parameters
+    ----------
+    centres : (s, 3) float64, m;  radii : (s,) float64, m
+        The spheres at rest (radii with their skin).
+    bone : (s,) int64
+        The bone each follows (``model.bone_names`` order).
+    mats : (f + 1, b, 3, 4) float64
+        The bones' skinning matrices of every frame (:func:`pose_frames`).
+    """
+
+    def __init__(self, centres, radii, bone, mats):
+        self.radii = np.asarray(radii, dtype=np.float64)
+        m = mats[:, np.asarray(bone, dtype=np.int64)]  # (f + 1, s, 3, 4)
+        self.centres = np.einsum("fsij,sj->fsi", m[:, :, :, :3], centres) + m[:, :, :, 3]
+        self._out = np.empty((len(self.radii), 4))
+        self._out[:, 3] = self.radii
+
+    @classmethod
+    def fitted(cls, body, model, mats, dst, kind="bone-spheres"):
+        """The spheres ``kind`` (class docstring) fitted to ``body`` (at rest, with its helper vertices) with the
+        drape's ``spheres_per_bone`` and ``sphere_skin`` (``dst``)."""
+        if kind == "spheres":
+            centres, radii, bone = cls._medial(body, model)
+        else:
+            centres, radii, bone = cls._along_bones(body, model, dst)
+        return cls(centres, np.asarray(radii) * (1.0 + dst.sphere_skin), bone, mats)
+
+    @staticmethod
+    def _along_bones(body, model, dst):
+        from vfit_engine.body.segment import bone_positions, seed_bones
+        from vfit_engine.collide.bone_spheres import MIN_BONE_LENGTH, fit_bone_spheres
+
+        if not body.has_helpers:
+            raise InputError("the bone-spheres collider needs the body's helper vertices (its skeleton): build the "
+                             "body from measurements instead of reading it from a file")
+        pos = bone_positions(model, body.verts)
+        names = [b for _part, bones in seed_bones(model).items() for b in bones
+                 if np.linalg.norm(np.subtract(pos[b][1], pos[b][0])) >= MIN_BONE_LENGTH]
+        centres, radii, bone_of = fit_bone_spheres(body.surface, model.body_tris, [pos[n] for n in names],
+                                                   per_bone=dst.spheres_per_bone)
+        index = {n: i for i, n in enumerate(model.bone_names)}
+        return centres, radii, np.array([index[names[i]] for i in bone_of], dtype=np.int64)
+
+    @staticmethod
+    def _medial(body, model):
+        from scipy import sparse
+        from scipy.spatial import cKDTree
+
+        from vfit_engine.collide.auto_spheres import fit_spheres
+        from vfit_engine.collide.body_mesh import MeshCollider
+
+        surface = body.surface
+        centres, radii = fit_spheres(surface, model.body_tris, MeshCollider(surface, model.body_tris))
+        bone, vertex, weight = model.skin
+        keep = vertex < len(surface)
+        w = sparse.csr_matrix((weight[keep], (vertex[keep], bone[keep])), shape=(len(surface), len(model.bone_names)))
+        _, near = cKDTree(surface).query(centres, k=8)  # the skin round the sphere
+        carry = np.asarray(sum(w[near[:, j]] for j in range(near.shape[1])).todense())
+        return centres, radii, np.argmax(carry, axis=1)
+
+    def at(self, k, s):
+        """(s, 4) the spheres (centre, radius; m) at time ``s`` of frame ``k``."""
+        c0 = self.centres[max(k - 1, 0)]
+        self._out[:, :3] = c0 + s * (self.centres[k] - c0)
+        return self._out.copy()
+
+
+def animate_garment(setup, clip, model, settings=None, drape_settings=None, on_drape_frame=None, on_frame=None):
+    """The whole animated fitting: the garment draped at rest on the still body (:func:`vfit_engine.drape.
+    run_drape`, the path ``vfit drape`` runs), then :func:`run_animation` from there.
+
+    Returns
+    -------
+    (DrapeResult, AnimationResult)
+    """
+    from vfit_engine.drape.loop import run_drape
+
+    drape = run_drape(setup, drape_settings, on_frame=on_drape_frame)
+    return drape, run_animation(setup, drape.pos, clip, model, settings, drape_settings, on_frame=on_frame)
