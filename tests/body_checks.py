@@ -66,3 +66,22 @@ def section_overlap(verts, tris, ys, min_area=0.003):
                     if depth > worst:
                         worst, at = depth, float(y)
     return worst, at
+
+
+def winding_numbers(verts, tris, points):
+    """Generalised winding number of each point about the closed mesh (Jacobson et al. 2013): 1 inside a
+    part, 0 outside, 2 inside two parts that went into each other, ~0.5 on the skin.
+
+    Unlike the sign of the nearest surface's normal (what :class:`MeshCollider` reads, right for cloth near
+    the skin), it stays right where a posed body passes through itself: a forearm sunk into a knee does not
+    make the knee's joint read as outside. Sum of the triangles' solid angles (Van Oosterom & Strackee 1983).
+    """
+    out = np.empty(len(points))
+    for i, q in enumerate(np.asarray(points, dtype=np.float64)):
+        a, b, c = (verts[tris[:, k]] - q for k in range(3))
+        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+        num = np.einsum("ij,ij->i", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la
+               + np.einsum("ij,ij->i", c, a) * lb)
+        out[i] = 2.0 * np.arctan2(num, den).sum() / (4.0 * np.pi)
+    return out
