@@ -171,14 +171,28 @@ class Measurer:
         self.tris = self.model.body_tris
         self.sections = MeshSections(self.tris, N_BODY)
         self.breasts = breast_regions(self.model)
+        self._bust_memo = None  # (verts, bust_band(verts)) of the last body
 
     def bust_band(self, verts) -> tuple[float, float, np.ndarray]:
         """(lo, hi, points): the bust band (m) and the vertices its bottom follows (the two bust points;
-        none where the band is held under the armpits). See the module docstring."""
+        none where the band is held under the armpits). See the module docstring.
+
+        The last body's band is kept: the morph measures and differentiates one body several times (a
+        measurement, then one gradient per girth), and each band costs ~15 sections."""
+        verts = np.asarray(verts)[:N_BODY]
+        memo = self._bust_memo
+        if memo is not None and np.array_equal(memo[0], verts):
+            return memo[1]
+        band = self._bust_band(verts)
+        self._bust_memo = (verts.copy(), band)
+        return band
+
+    def _bust_band(self, verts):
         points = np.array([idx[np.argmax(verts[idx, 2])] for idx in self.breasts])
         y = float(verts[points, 1].mean()) - BUST_PLANE_OFFSET
         if self._apart(verts, y):
-            return y, min(self._last_apart(verts, y, +1), y + BUST_BAND_ABOVE), points
+            # the walk stops at the band's cap: beyond it the armpit cannot lower the top (the same band)
+            return y, min(self._last_apart(verts, y, +1, reach=BUST_BAND_ABOVE), y + BUST_BAND_ABOVE), points
         y = self._last_apart(verts, y, -1, want=True)  # the arms join the torso here: go down to the armpit
         return y, y, points[:0]
 
@@ -192,14 +206,14 @@ class Measurer:
         x0, x1 = torso[0][:, 0].min(), torso[0][:, 0].max()
         return any(p[:, 0].max() < x0 for p in loops) and any(p[:, 0].min() > x1 for p in loops)
 
-    def _last_apart(self, verts, y, direction, want=False):
+    def _last_apart(self, verts, y, direction, want=False, reach=ARMPIT_SEARCH):
         """From ``y`` (where the arms are apart, or with ``want`` not yet), the last plane on the 1 mm
         grid in ``direction`` whose arms-apart state is still that of ``y`` - or, with ``want``, the
         first where they are apart: a 1 cm coarse walk, then bisection on the 1 mm grid."""
         state = not want
         k_step = int(round(ARMPIT_COARSE / ARMPIT_STEP))
         last = 0  # in 1 mm grid steps from y
-        for k in range(k_step, int(round(ARMPIT_SEARCH / ARMPIT_STEP)) + 1, k_step):
+        for k in range(k_step, int(round(reach / ARMPIT_STEP)) + 1, k_step):
             if self._apart(verts, y + direction * k * ARMPIT_STEP) != state:
                 lo, hi = last, k  # the state holds at lo and has changed at hi
                 while hi - lo > 1:

@@ -52,20 +52,8 @@ from .measure import NAMES, Measurement, Measurer, stature
 from .model import N_BODY, BodyModel, Macro, gender_value
 from .population import VARIABLES, PopulationModel
 
-#: girth -> its primary target (``-incr``/``-decr`` appended)
-CHANNELS = {
-    "bust": "torso/measure-bust-circ",
-    "underbust": "torso/measure-underbust-circ",
-    "waist": "torso/measure-waist-circ",
-    "hips": "torso/measure-hips-circ",
-    "neck": "neck/measure-neck-circ",
-    "upper-arm": "arms/measure-upperarm-circ",
-    "thigh": "legs/measure-thigh-circ",
-    "calf": "legs/measure-calf-circ",
-}
-GIRTHS = tuple(CHANNELS)
-#: secondary channels: used when the primary ones saturate
-SECONDARY = ("torso/torso-scale-horiz", "torso/torso-scale-depth", "hip/hip-scale-horiz", "hip/hip-scale-depth")
+from .channels import CHANNELS, GIRTHS, HEAVY, SECONDARY, ChannelSet  # noqa: F401  (re-exported)
+
 #: relative standard error given to the underbust estimate (the survey has no underbust: an assumption)
 UNDERBUST_SD = 0.04
 #: a girth or height within this of its target counts as met (m); the promise is 1 mm.
@@ -160,14 +148,10 @@ class Morpher:
     def __init__(self, model: BodyModel | None = None, measurer: Measurer | None = None):
         self.model = model or BodyModel.load()
         self.measurer = measurer or Measurer(self.model)
-        self._channel_names = [CHANNELS[g] for g in GIRTHS] + list(SECONDARY)
-        dense = lambda n: self.model.dense_target(n, N_BODY).ravel()
-        self._incr = np.stack([dense(c + "-incr") for c in self._channel_names])
-        self._decr = np.stack([dense(c + "-decr") for c in self._channel_names])
-        self._updown = np.ascontiguousarray(np.concatenate([self._incr, self._decr]))
+        base = [CHANNELS[g] for g in GIRTHS] + list(SECONDARY)
+        self._sets = (ChannelSet(self.model, base), ChannelSet(self.model, base + list(HEAVY)))
+        self._channel_names = self._sets[0].names
         self._base_flat = np.ascontiguousarray(self.model.base_verts[:N_BODY].ravel())
-        self._incr3 = self._incr.reshape(len(self._channel_names), N_BODY, 3)
-        self._decr3 = self._decr.reshape(len(self._channel_names), N_BODY, 3)
         self._macro_cache = {}
         self._last_macro = (None, None)
         self._start_cache = {}
@@ -204,8 +188,12 @@ class Morpher:
             self._last_macro = (macro, self._macro_body(macro))
         # a serial kernel, not NumPy's dot: the BLAS path costs 0.1-6 ms a call on a busy machine
         out = np.empty(3 * N_BODY)
-        blend(self._last_macro[1], self._updown, np.concatenate([incr, decr]), out)
+        blend(self._last_macro[1], self._set(incr.size).updown, np.concatenate([incr, decr]), out)
         return out.reshape(N_BODY, 3)
+
+    def _set(self, n_channels: int) -> ChannelSet:
+        """The channel set with ``n_channels`` channels (the base one, or with the HEAVY channels)."""
+        return self._sets[0] if n_channels == self._sets[0].n else self._sets[1]
 
     # ----------------------------------------------------------------- solving
     def start(self, gender: float, definition: str = "iso") -> Measurement:
@@ -287,7 +275,7 @@ class Morpher:
         t0 = time.perf_counter()
         plan = self.plan(targets, g, definition, weight_kg)
         h, b = self._semantic(g, plan.goals["height"], plan.mass, definition)
-        x, meas, iterations = self._fit(g, h, b, plan, definition)
+        x, meas, iterations = self._fit_all(g, h, b, plan, definition)
         out = self._result(g, x, meas, plan, targets, weight_kg, iterations)
         self._check(out, definition, g, deadline=t0 + RANGE_SEARCH_UNTIL)
         return out
@@ -305,15 +293,34 @@ class Morpher:
                              np.zeros(2), None)
         return float(p[0]), float(p[1])
 
-    def _fit(self, g, h, b, plan, definition, push=None, max_outer=7, max_inner=40, x0=None, soft=SOFT_WEIGHT):
+    def _fit_all(self, g, h, b, plan, definition):
+        """:meth:`_fit`, then, if it ended at the heavy corner short of a target, again from there with the
+        HEAVY channels open. Returns as :meth:`_fit`."""
+        x, meas, iterations = self._fit(g, h, b, plan, definition)
+        if x[-1] >= B_MAX - 1e-9 and self._missed(meas, plan):
+            x0 = self._sets[0].widen(x, self._sets[1])
+            x, meas, more = self._fit(g, h, b, plan, definition, x0=x0, heavy=True)
+            iterations += more
+        return x, meas, iterations
+
+    @staticmethod
+    def _missed(meas, plan) -> bool:
+        """Does ``meas`` miss a given value of ``plan`` (girth or height, or the mass)?"""
+        if "mass" in plan.hard and abs(meas.mass_kg / plan.mass - 1.0) > TOLERANCE_MASS:
+            return True
+        return any(abs(meas.values[k] - plan.goals[k]) > TOLERANCE_M for k in plan.hard if k != "mass")
+
+    def _fit(self, g, h, b, plan, definition, push=None, max_outer=7, max_inner=40, x0=None, soft=SOFT_WEIGHT,
+             heavy=False):
         """The measurement stage: channel weights, height slider and build meeting ``plan``.
 
         ``push`` = (name, goal, weight) replaces one goal (the reach search). Returns (x, measurement,
-        outer iterations); ``x`` = [-incr weights, -decr weights, height slider, build]. The outer loop
-        (band searches) stops early where a target stays more than 1 mm away without closing in.
+        outer iterations); ``x`` = [-incr weights, -decr weights, height slider, build] of the base channels,
+        or with ``heavy`` (or an ``x0`` of that size) of the base and HEAVY ones. The outer loop (band
+        searches) stops early where a target stays more than 1 mm away without closing in.
         """
         m = self.measurer
-        n_ch = len(self._channel_names)
+        n_ch = self._sets[1 if heavy else 0].n if x0 is None else (len(x0) - 2) // 2
         keys = GIRTHS + ("height",)
         goal = np.array([plan.goals[k] for k in keys])
         wres = np.array([1.0 if k in plan.hard else soft for k in keys])
@@ -330,7 +337,7 @@ class Morpher:
             x = np.array(x0, dtype=np.float64)
         lo, hi = np.zeros_like(x), np.ones_like(x)
         lo[-1], hi[-1] = B_MIN, B_MAX
-        reg_ch = np.concatenate([np.full(len(GIRTHS), REG_PRIMARY), np.full(len(self._channel_names) - len(GIRTHS),
+        reg_ch = np.concatenate([np.full(len(GIRTHS), REG_PRIMARY), np.full(n_ch - len(GIRTHS),
                                                                              REG_SECONDARY)])
         reg = np.concatenate([reg_ch, reg_ch, [0.0, 0.0]])
 
@@ -373,21 +380,16 @@ class Morpher:
         return x, meas, iterations
 
     def _result(self, g, x, meas, plan, targets, weight_kg, iterations) -> MorphResult:
-        n_ch = len(self._channel_names)
-        up, down = x[:n_ch], x[n_ch:2 * n_ch]
+        ch = self._set((x.size - 2) // 2)
+        up, down = x[:ch.n], x[ch.n:2 * ch.n]
         macro = self.macro(g, x[-2], x[-1])
-        weights = dict(macro.target_weights())
-        for name, u, d in zip(self._channel_names, up, down):
-            if u > 0:
-                weights[name + "-incr"] = float(u)
-            if d > 0:
-                weights[name + "-decr"] = float(d)
+        weights = {**macro.target_weights(), **ch.weights(up, down)}
         # the body vertices are exactly the array the last full measurement was taken on
         # (the sparse sum gives the helpers; it differs from the dense one by round-off)
         verts = self.model.shape(weights)
         verts[:N_BODY] = self._body_split(macro, up, down)
         meas.values = {k: meas.values[k] for k in NAMES}
-        channels = {n: float(v) for n, v in zip(self._channel_names, up - down)}
+        channels = {n: float(v) for n, v in zip(ch.names, up - down)}
         return MorphResult(verts, macro, float(x[-1]), channels, meas, dict(targets), weight_kg, plan.start,
                            iterations, weights, plan.estimated, plan.warnings)
 
@@ -395,17 +397,18 @@ class Morpher:
         """Exact Jacobian of the measurement-stage residuals: ``grad g . D`` per channel
         (the body is linear in them); the height-slider and build columns by forward differences
         (macro sliders, nonlinear)."""
-        n_ch = len(self._channel_names)
+        ch = self._set((p.size - 2) // 2)
+        n_ch = ch.n
         J = np.zeros((r.size, p.size))
         for row, k in enumerate(keys):
             idx, grad = self.measurer.gradient(v, k, definition, meas.fractions.get(k))
             scale = wres[row] / _MM
-            J[row, :n_ch] = np.einsum("jkc,kc->j", self._incr3[:, idx], grad) * scale
-            J[row, n_ch:2 * n_ch] = np.einsum("jkc,kc->j", self._decr3[:, idx], grad) * scale
+            J[row, :n_ch] = np.einsum("jkc,kc->j", ch.incr3[:, idx], grad) * scale
+            J[row, n_ch:2 * n_ch] = np.einsum("jkc,kc->j", ch.decr3[:, idx], grad) * scale
         grad = self.measurer.mass_gradient(v).ravel()
         scale = 1.0 / mass / _MASS_UNIT * w_mass
         col = np.empty(2 * n_ch)
-        project(self._updown, grad, col)
+        project(ch.updown, grad, col)
         J[-1, :2 * n_ch] = col * scale
         for col, top in ((-2, 1.0), (-1, B_MAX)):
             step = -1e-5 if p[col] + 1e-5 > top else 1e-5
@@ -466,7 +469,7 @@ class Morpher:
 
         plan = self.plan(others, g, definition, w_others)
         h, b = self._semantic(g, plan.goals["height"], plan.mass, definition)
-        x, meas, _ = self._fit(g, h, b, plan, definition)
+        x, meas, _ = self._fit_all(g, h, b, plan, definition)
         if not meets_others(meas):
             return float("nan"), float("nan")
         ends = [value(meas)]
