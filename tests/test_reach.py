@@ -134,8 +134,8 @@ def test_plausibility_warning_and_refusal(morpher):
     waist with 130 cm hips (waist-to-hip 0.42), is refused with the reason."""
     res = morpher.solve({"height": 1.68, "waist": 0.60, "hips": 1.10})
     text = " ".join(res.warnings)
-    assert "waist is at percentile" in text and "with the other measurements given (ANSUR II" in text
-    with pytest.raises(InputError, match=r"refused: waist is 8\.\d standard deviations below the mean of adult women"):
+    assert "waist is at percentile" in text and "with the other measurements given (NHANES 2017-2018" in text
+    with pytest.raises(InputError, match=r"refused: waist is 5\.\d standard deviations below the mean of adult women"):
         morpher.solve({"waist": 0.33})
     with pytest.raises(InputError, match=r"refused: waist is 9\.\d standard deviations below what adult women "
                                          r"with the other measurements given have"):
