@@ -62,6 +62,14 @@ import numpy as np
 #: the model's variables: measurement names of ``measure.NAMES`` plus ``mass`` (kg); lengths in m
 VARIABLES = ("height", "mass", "bust", "waist", "hips", "neck", "upper-arm", "thigh", "calf")
 SOURCE = "NHANES 2017-2018"
+
+
+def source(name: str) -> str:
+    """Where a variable's distribution comes from, for messages: NHANES for stature and mass; a girth is NHANES'
+    spread through a survey's regression (bdims; ANSUR II men for the neck)."""
+    if name in ("height", "mass"):
+        return SOURCE
+    return f"{SOURCE} with {'ANSUR II men' if name == 'neck' else 'Heinz et al. 2003'}"
 CITATION = ("NHANES 2017-2018 (CDC/NCHS; BMX, DEMO; adults 20+) for stature, mass and their spread; girths by "
             "regression on them from Heinz G. et al., Exploring relationships in body dimensions, J. Stat. Educ. "
             "11(2), 2003 and (neck) ANSUR II, Gordon C. C. et al., NATICK/TR-15/007, 2014")
@@ -140,10 +148,10 @@ class Assessment:
         for k, z in self.marginal_z.items():
             zc = self.conditional_z.get(k, 0.0)
             if abs(z) > WARN_Z:
-                out.append(f"{_label(k)} is at {_pct_text(z)} of {self.who} ({SOURCE})")
+                out.append(f"{_label(k)} is at {_pct_text(z)} of {self.who} ({source(k)})")
             elif abs(zc) > WARN_Z:
                 out.append(f"{_label(k)} is at {_pct_text(zc)} of {self.who} with the other measurements "
-                           f"given ({SOURCE})")
+                           f"given ({source(k)})")
         return out
 
     def refusals(self) -> list[str]:
@@ -154,10 +162,10 @@ class Assessment:
             zc = self.conditional_z.get(k, 0.0)
             if abs(z) > REFUSE_Z:
                 out.append(f"{_label(k)} is {abs(z):.1f} standard deviations {'below' if z < 0 else 'above'} "
-                           f"the mean of {self.who} ({SOURCE}; {_pct_text(z)}), where no adult body is")
+                           f"the mean of {self.who} ({source(k)}; {_pct_text(z)}), where no adult body is")
             elif abs(zc) > REFUSE_Z_GIVEN:
                 out.append(f"{_label(k)} is {abs(zc):.1f} standard deviations {'below' if zc < 0 else 'above'} "
-                           f"what {self.who} with the other measurements given have ({SOURCE}), where no "
+                           f"what {self.who} with the other measurements given have ({source(k)}), where no "
                            f"adult body is")
         return out
 
