@@ -192,9 +192,8 @@ class Measurer:
     def _bust_band(self, verts):
         points = np.array([idx[np.argmax(verts[idx, 2])] for idx in self.breasts])
         y = float(verts[points, 1].mean()) - BUST_PLANE_OFFSET
-        # every plane of the 1 mm grid is looked at (one kernel call): an arm touching the chest for a
-        # few millimetres ends the band there (a 1 cm coarse walk stepped over such a touch on a 192 cm /
-        # 111 kg man and took his chest 2 mm larger than a 1 mm tape)
+        # every plane of the 1 mm grid is looked at (one kernel call), as the definition says: a coarse
+        # walk could step over an arm touching the chest for a few millimetres
         up = self.sections.apart(verts, y + _BAND_STEPS)
         if up[0]:
             n = int(np.argmin(up)) if not up.all() else up.size  # the first plane where they touch
