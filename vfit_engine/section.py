@@ -164,6 +164,20 @@ class MeshSections:
             return loops, [bool(c) for c in self._loop_closed[:n_loops]]
         return loops
 
+    def band_edges(self, verts, y_lo, y_hi):
+        """(k,) int64: the edges any plane ``y_lo <= y <= y_hi`` can cut, for :meth:`arms_apart`.
+        ``verts`` must be C-contiguous float64 (n_verts, 3), as :meth:`arms_apart` takes it."""
+        n = _ks.select_band_edges(verts, self.edges, float(y_lo), float(y_hi), self._cand)
+        return self._cand[:n].copy()
+
+    def arms_apart(self, verts, y, cand):
+        """Does the section at ``y`` show one loop spanning ``x = 0`` and another wholly on each side of
+        it (:func:`vfit_engine.kernels.section.arms_apart`)? ``cand`` from :meth:`band_edges` of a band
+        holding ``y``; ``verts`` C-contiguous float64 (n_verts, 3), not checked (the morph's hot path)."""
+        return bool(_ks.arms_apart(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, cand, cand.size,
+                                   float(y), self._visited, self._cut, self._pts, self._loop_start,
+                                   self._loop_closed))
+
     def girth(self, verts, y, method="hull", x0=0.0):
         """Torso girth at height ``y``.
 

@@ -188,37 +188,43 @@ class Measurer:
         return band
 
     def _bust_band(self, verts):
+        verts = np.ascontiguousarray(verts, dtype=np.float64)
         points = np.array([idx[np.argmax(verts[idx, 2])] for idx in self.breasts])
         y = float(verts[points, 1].mean()) - BUST_PLANE_OFFSET
-        if self._apart(verts, y):
+        # each walk's planes are cut from one selection of the edges its band can cut (a selection
+        # passes over all 40,000 edges; a plane then over a few thousand)
+        up = self.sections.band_edges(verts, y, y + BUST_BAND_ABOVE + ARMPIT_STEP)
+        if self._apart(verts, y, up):
             # the walk stops at the band's cap: beyond it the armpit cannot lower the top (the same band)
-            return y, min(self._last_apart(verts, y, +1, reach=BUST_BAND_ABOVE), y + BUST_BAND_ABOVE), points
-        y = self._last_apart(verts, y, -1, want=True)  # the arms join the torso here: go down to the armpit
+            top = self._last_apart(verts, y, +1, up, reach=BUST_BAND_ABOVE)
+            return y, min(top, y + BUST_BAND_ABOVE), points
+        down = self.sections.band_edges(verts, y - ARMPIT_SEARCH - ARMPIT_STEP, y)
+        y = self._last_apart(verts, y, -1, down, want=True)  # the arms join the torso here: go down to the armpit
         return y, y, points[:0]
 
-    def _apart(self, verts, y) -> bool:
+    def _apart(self, verts, y, cand=None) -> bool:
         """Does the section at ``y`` show the torso and both arms apart: a loop spanning the centre
-        line x = 0 and, wholly to either side of it, at least one other loop?"""
-        loops = self.sections.loops(verts, y)
-        torso = [p for p in loops if p[:, 0].min() <= 0.0 <= p[:, 0].max()]
-        if len(torso) != 1:
-            return False
-        x0, x1 = torso[0][:, 0].min(), torso[0][:, 0].max()
-        return any(p[:, 0].max() < x0 for p in loops) and any(p[:, 0].min() > x1 for p in loops)
+        line x = 0 and, wholly to either side of it, at least one other loop? ``cand``: the edges of
+        a band holding ``y`` (:meth:`MeshSections.band_edges`)."""
+        verts = np.ascontiguousarray(verts, dtype=np.float64)
+        if cand is None:
+            cand = self.sections.band_edges(verts, y, y)
+        return self.sections.arms_apart(verts, y, cand)
 
-    def _last_apart(self, verts, y, direction, want=False, reach=ARMPIT_SEARCH):
+    def _last_apart(self, verts, y, direction, cand, want=False, reach=ARMPIT_SEARCH):
         """From ``y`` (where the arms are apart, or with ``want`` not yet), the last plane on the 1 mm
         grid in ``direction`` whose arms-apart state is still that of ``y`` - or, with ``want``, the
-        first where they are apart: a 1 cm coarse walk, then bisection on the 1 mm grid."""
+        first where they are apart: a 1 cm coarse walk, then bisection on the 1 mm grid. ``cand``: the
+        edges of the walk's band (:meth:`MeshSections.band_edges`)."""
         state = not want
         k_step = int(round(ARMPIT_COARSE / ARMPIT_STEP))
         last = 0  # in 1 mm grid steps from y
         for k in range(k_step, int(round(reach / ARMPIT_STEP)) + 1, k_step):
-            if self._apart(verts, y + direction * k * ARMPIT_STEP) != state:
+            if self._apart(verts, y + direction * k * ARMPIT_STEP, cand) != state:
                 lo, hi = last, k  # the state holds at lo and has changed at hi
                 while hi - lo > 1:
                     mid = (lo + hi) // 2
-                    if self._apart(verts, y + direction * mid * ARMPIT_STEP) == state:
+                    if self._apart(verts, y + direction * mid * ARMPIT_STEP, cand) == state:
                         lo = mid
                     else:
                         hi = mid

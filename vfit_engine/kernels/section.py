@@ -295,3 +295,42 @@ def scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x
             continue
         lp = pts_out[loop_start_out[best]:loop_start_out[best + 1]]
         girth_out[i] = loop_girth(lp, method, samples, order, hull, work)
+
+
+@njit
+def arms_apart(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h,
+               visited, cut, pts_out, loop_start_out, loop_closed_out):
+    """Does the section at ``y = h`` show a torso and both arms apart: exactly one loop whose
+    x-range holds ``x = 0`` and, wholly on either side of it, at least one other loop?
+
+    ``cand``/``n_cand`` as :func:`section_loops` (edges a band around ``h`` can cut: the bust band's
+    walk selects them once for all its planes); other arguments are its scratch.
+    """
+    n_pts, n_loops = section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h,
+                                   visited, cut, pts_out, loop_start_out, loop_closed_out)
+    n_torso = 0
+    x0 = 0.0
+    x1 = 0.0
+    for i in range(n_loops):
+        lo = np.inf
+        hi = -np.inf
+        for j in range(loop_start_out[i], loop_start_out[i + 1]):
+            lo = min(lo, pts_out[j, 0])
+            hi = max(hi, pts_out[j, 0])
+        if lo <= 0.0 <= hi:
+            n_torso += 1
+            x0 = lo
+            x1 = hi
+    if n_torso != 1:
+        return False
+    left = False
+    right = False
+    for i in range(n_loops):
+        lo = np.inf
+        hi = -np.inf
+        for j in range(loop_start_out[i], loop_start_out[i + 1]):
+            lo = min(lo, pts_out[j, 0])
+            hi = max(hi, pts_out[j, 0])
+        left = left or hi < x0
+        right = right or lo > x1
+    return left and right
