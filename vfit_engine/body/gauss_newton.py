@@ -5,13 +5,15 @@ reach search all call it; it knows nothing of bodies.
 """
 import numpy as np
 
+from .bvls import bvls
+
 
 def gauss_newton(fun, x, lo, hi, reg, planes, hard=None, jac=None, max_iter=40, fd_step=1e-5, soft_tol=0.0):
     """Minimise ``|r(x)|^2 + |reg * x|^2`` over ``lo <= x <= hi``.
 
     ``fun(x, planes) -> (r, info)``. A trust-region Gauss-Newton: a
     forward-difference Jacobian with Broyden rank-one updates between refreshes,
-    and each step the bounded linear least-squares problem (``lsq_linear``)
+    and each step the bounded linear least-squares problem (``bvls.py``, warm-started)
     within a box of half-width ``delta`` that grows after good steps and shrinks
     after bad ones (a bad step first refreshes a stale Jacobian). Stops when the
     objective stalls (relative decrease < 1e-2) or is tiny, with the ``hard``
@@ -22,8 +24,6 @@ def gauss_newton(fun, x, lo, hi, reg, planes, hard=None, jac=None, max_iter=40, 
     together (a target out of reach). With ``jac(x,
     planes) -> J`` the exact Jacobian is used at every iterate instead.
     """
-    from scipy.optimize import lsq_linear
-
     def objective(r, x):
         d = reg * x
         return float(r @ r + d @ d)
@@ -46,13 +46,15 @@ def gauss_newton(fun, x, lo, hi, reg, planes, hard=None, jac=None, max_iter=40, 
     f = objective(r, x)
     A_reg = np.diag(reg)
     delta = 1.0
+    active = None
     crawling = 0
     history = []
     for _ in range(max_iter):
         A = np.vstack([J, A_reg])
         rhs = -np.concatenate([r, reg * x])
         box = (np.maximum(lo - x, -delta) - 1e-15, np.minimum(hi - x, delta) + 1e-15)
-        dx = lsq_linear(A, rhs, bounds=box, method="bvls", tol=1e-12).x
+        # each step binds nearly the variables the last one bound: start the active set there
+        dx, active = bvls(A, rhs, box[0], box[1], on_bound=active, tol=1e-12)
         if np.max(np.abs(dx)) < 1e-10:
             break
         model = A @ dx - rhs

@@ -190,6 +190,7 @@ class Measurer:
         return band
 
     def _bust_band(self, verts):
+        verts = np.ascontiguousarray(verts, dtype=np.float64)
         points = np.array([idx[np.argmax(verts[idx, 2])] for idx in self.breasts])
         y = float(verts[points, 1].mean()) - BUST_PLANE_OFFSET
         # every plane of the 1 mm grid is looked at (one kernel call), as the definition says: a coarse

@@ -348,7 +348,7 @@ class Morpher:
             r = np.append(r, (meas.mass_kg / mass - 1.0) / _MASS_UNIT * w_mass)
             if not jac:
                 return r, meas
-            return r, self._jacobian(v, p, keys, meas, definition, wres, mass, w_mass, residual, r, planes)
+            return r, self._jacobian(v, p, keys, meas, definition, wres, mass, w_mass, r)
 
         def jacobian(p, planes):
             return residual(p, planes, jac=True)[1]
@@ -393,28 +393,39 @@ class Morpher:
         return MorphResult(verts, macro, float(x[-1]), channels, meas, dict(targets), weight_kg, plan.start,
                            iterations, weights, plan.estimated, plan.warnings)
 
-    def _jacobian(self, v, p, keys, meas, definition, wres, mass, w_mass, residual, r, planes):
-        """Exact Jacobian of the measurement-stage residuals: ``grad g . D`` per channel
-        (the body is linear in them); the height-slider and build columns by forward differences
-        (macro sliders, nonlinear)."""
+    def _jacobian(self, v, p, keys, meas, definition, wres, mass, w_mass, r):
+        """Jacobian of the measurement-stage residuals: ``grad g . D`` per channel (the body is
+        linear in them), and ``grad g . dv`` for the height slider and the build, with ``dv`` the
+        body's forward difference (the macro sliders are nonlinear, but the body is linear in the
+        macro targets' weights: one macro blend per slider instead of a whole measurement)."""
         ch = self._set((p.size - 2) // 2)
         n_ch = ch.n
         J = np.zeros((r.size, p.size))
+        # v was just built by _body_split at p's sliders: its macro body is the one cached
+        macro, base = self._last_macro
+        assert macro == self.macro(macro.gender, p[-2], p[-1])
+        moves = np.empty((2, 3 * N_BODY))  # d body / d (height slider, build), flattened
+        for row, (col, top) in enumerate(((-2, 1.0), (-1, B_MAX))):
+            step = -1e-5 if p[col] + 1e-5 > top else 1e-5
+            q = p.copy()
+            q[col] += step
+            moves[row] = (self._macro_body(self.macro(macro.gender, q[-2], q[-1])) - base) / step
+        moves3 = moves.reshape(2, N_BODY, 3)
         for row, k in enumerate(keys):
             idx, grad = self.measurer.gradient(v, k, definition, meas.fractions.get(k))
             scale = wres[row] / _MM
             J[row, :n_ch] = np.einsum("jkc,kc->j", ch.incr3[:, idx], grad) * scale
             J[row, n_ch:2 * n_ch] = np.einsum("jkc,kc->j", ch.decr3[:, idx], grad) * scale
+            J[row, -2:] = np.einsum("jkc,kc->j", moves3[:, idx], grad) * scale
         grad = self.measurer.mass_gradient(v).ravel()
         scale = 1.0 / mass / _MASS_UNIT * w_mass
         col = np.empty(2 * n_ch)
         project(ch.updown, grad, col)
         J[-1, :2 * n_ch] = col * scale
-        for col, top in ((-2, 1.0), (-1, B_MAX)):
-            step = -1e-5 if p[col] + 1e-5 > top else 1e-5
-            q = p.copy()
-            q[col] += step
-            J[:, col] = (residual(q, planes)[0] - r) / step
+        # the serial kernel, not NumPy's dot (see kernels/blend.py: BLAS threads on a busy machine)
+        slider = np.empty(2)
+        project(moves, grad, slider)
+        J[-1, -2:] = slider * scale
         return J
 
     # ----------------------------------------------------------------- checks
