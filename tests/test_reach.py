@@ -84,9 +84,9 @@ def test_extremes_stay_human(morpher, body_model, case_id):
     """No part into another beyond flesh contact (section loops of arms, torso and thighs overlap by
     < 10 mm, 1.5 cm apart from knee to shoulder); faces turned over: at most 12 of the 26,756 beyond
     those MakeHuman's own heaviest body of the gender turns (4 on the male head). Measured: 0-2 on
-    every extreme but the 175 cm / 130 kg man, whose chest target pushed up against the underbust's
-    turns 10 small faces under the pectorals (issue 11 report); extrapolating the weight slider to 1.2
-    instead turns 78."""
+    every extreme but the 175 cm / 130 kg man: 8 (his estimated 140 cm chest pulled the bust channel to 1,
+    which turned 24 under the pectorals, at the armpits and throat; channels.INCR_MAX now holds it at 0.8);
+    extrapolating the weight slider to 1.2 instead turns 78."""
     _, gender, _, _ = CASES[case_id]
     res = _solve(morpher, case_id)
     verts = res.verts[:13380]
@@ -140,6 +140,20 @@ def test_plausibility_warning_and_refusal(morpher):
     with pytest.raises(InputError, match=r"refused: waist is 9\.\d standard deviations below what adult women "
                                          r"with the other measurements given have"):
         morpher.solve({"height": 1.68, "waist": 0.55, "hips": 1.30})
+    # NHANES's 99th-percentile-waist man (waist taped over the belly): no body's narrowest waist exceeds its hips
+    with pytest.raises(InputError, match=r"refused: waist 143\.8 cm is more than hips 138\.2 cm"):
+        morpher.solve({"height": 1.772, "waist": 1.438, "hips": 1.382}, gender="male", weight_kg=141.9)
+
+
+def test_flat_chest_builds(morpher, body_model, breasts):
+    """The survey's 1st-percentile chest of men (168.2 cm, 52.1 kg, chest 87.1, waist 66.8, hips 88.0): two
+    rows of his flat chest tie for the bust point, and the chest band jumped 13 mm between them under the
+    solver's steps; it stopped 1.4 mm short of the waist. Re-measured by the independent tape."""
+    cm = dict(height=168.153, bust=87.134, waist=66.814, hips=88.018)
+    res = morpher.solve({k: v / 100 for k, v in cm.items()}, gender="male", weight_kg=52.095)
+    tape = tape_measure(res.verts, body_model.body_quads, breasts)
+    for k, v in cm.items():
+        assert abs(tape[k] - v / 100) <= MM, (k, tape[k])
 
 
 def test_error_range_ends_are_reachable(morpher, monkeypatch):

@@ -87,6 +87,9 @@ RANGE_SEARCH_UNTIL = 1.0
 #: turn over (hands, armpits: 22 faces at 1.1, 78 at 1.2 on the male) and the measure targets reach
 #: the heavy customers instead (175 cm / 130 kg men, 160 cm / 110 kg women)
 B_MIN, B_MAX = -1.5, 1.0
+#: the held bust points stay this much more anterior than any other vertex of their breast (m): the tape's
+#: argmax then picks them too
+POINT_MARGIN = 1e-4
 REG_PRIMARY = 1e-5  # mm-equivalent per unit of channel weight
 REG_SECONDARY = 1e-4
 
@@ -223,6 +226,14 @@ class Morpher:
             given["mass"] = float(weight_kg)
         assessment = pop.assess(given)
         refused = assessment.refusals()
+        if definition != "makehuman" and targets.get("waist", 0.0) > targets.get("hips", np.inf) + 2 * TOLERANCE_M:
+            # the waist band (hips line to underbust line) and the hips band (hips line +-4 cm) share the
+            # hips line's plane, so the smallest girth of one is at most the largest of the other on every
+            # body. Surveys tape a man's waist at the iliac crest (NHANES), over the belly: there it can be
+            # the larger (NHANES 2017-2018's men of the 99th percentile of bust or waist)
+            refused.append(f"waist {targets['waist'] * 100:.1f} cm is more than hips {targets['hips'] * 100:.1f} "
+                           "cm: the waist is the narrowest girth from the hips line up, the hips the largest "
+                           "within 4 cm of it, so no body's waist exceeds its hips")
         if refused:
             raise InputError("refused: " + "; ".join(refused))
         # a height not given stays the average body's: the survey's estimates then follow that height
@@ -337,15 +348,24 @@ class Morpher:
             x = np.array(x0, dtype=np.float64)
         lo, hi = np.zeros_like(x), np.ones_like(x)
         lo[-1], hi[-1] = B_MIN, B_MAX
+        hi[:n_ch] = self._set(n_ch).incr_max
+        x[:n_ch] = np.minimum(x[:n_ch], hi[:n_ch])
         reg_ch = np.concatenate([np.full(len(GIRTHS), REG_PRIMARY), np.full(n_ch - len(GIRTHS),
                                                                              REG_SECONDARY)])
         reg = np.concatenate([reg_ch, reg_ch, [0.0, 0.0]])
 
+        # the bust points of the last full measurement (at first the start body's), held while the planes are
+        held = [m.bust_points(self._body_split(self.macro(g, x[-2], x[-1]), x[:n_ch], x[n_ch:2 * n_ch]))]
+
         def residual(p, planes, jac=False):
             v = self._body_split(self.macro(g, p[-2], p[-1]), p[:n_ch], p[n_ch:2 * n_ch])
+            m.held_points = None if planes is None else held[0]
             meas = m.measure(v, definition, planes=planes, names=keys, mass=True)
+            if planes is None:
+                held[0] = m.bust_points(v)
             r = (np.array([meas.values[k] for k in keys]) - goal) / _MM * wres
-            r = np.append(r, (meas.mass_kg / mass - 1.0) / _MASS_UNIT * w_mass)
+            r = np.concatenate([r, [(meas.mass_kg / mass - 1.0) / _MASS_UNIT * w_mass],
+                                self._point_gap(v, held[0])[0]])
             if not jac:
                 return r, meas
             return r, self._jacobian(v, p, keys, meas, definition, wres, mass, w_mass, r)
@@ -353,11 +373,24 @@ class Morpher:
         def jacobian(p, planes):
             return residual(p, planes, jac=True)[1]
 
-        hard = np.concatenate([wres == 1.0, [w_mass == 1.0]])
+        hard = np.concatenate([wres == 1.0, [w_mass == 1.0], [True, True]])
         # planes seen so far per girth (fractions of its band): when the extremum jumps between two
         # valleys the inner solve must watch both, or the outer loop would cycle between them. The
         # average body's serve to start: bands move with the body, so fractions stay near
         seen = {k: np.asarray(v, dtype=np.float64) for k, v in plan.start.candidates.items()}
+        if x0 is not None:
+            # a warm start watches its own body's planes too: on the average body's alone, the first inner
+            # solve fits planes far from this body's extrema and walks far off the start (the heavy
+            # re-fit of a 174 cm / 146 kg woman put a 160 cm belly into her hips band)
+            for k, ys in residual(x, None)[1].candidates.items():
+                seen[k] = np.concatenate([seen[k], [t for t in ys if np.min(np.abs(seen[k] - t)) > 1e-4]])
+        try:
+            return self._outer(x, lo, hi, reg, seen, hard, residual, jacobian, max_outer, max_inner, definition)
+        finally:
+            m.held_points = None
+
+    def _outer(self, x, lo, hi, reg, seen, hard, residual, jacobian, max_outer, max_inner, definition):
+        """:meth:`_fit`'s outer loop: inner solves at the planes seen, then a full band search."""
         iterations, worst, prev_inner = 0, np.inf, np.inf
         for iterations in range(1, max_outer + 1):
             x, r_inner = _gauss_newton(residual, x, lo, hi, reg, seen, hard=hard, max_iter=max_inner, soft_tol=SOFT_TOL,
@@ -378,6 +411,19 @@ class Morpher:
             prev_inner = inner
             worst = min(worst, miss)
         return x, meas, iterations
+
+    def _point_gap(self, v, points):
+        """Per side: (hinge residual, held bust point, its nearest rival), the residual in mm
+        ``max(0, z_rival - z_held + POINT_MARGIN)``: it keeps the held points the most anterior (a flat
+        chest's rows tie, and the chest band jumps with them: :attr:`Measurer.held_points`)."""
+        if points is None:
+            return np.zeros(2), np.zeros(2, dtype=np.int64), np.zeros(2, dtype=np.int64)
+        gaps, rivals = np.zeros(2), np.zeros(2, dtype=np.int64)
+        for side, (idx, a) in enumerate(zip(self.measurer.breasts, points)):
+            z = np.where(idx == a, -np.inf, v[idx, 2])
+            rivals[side] = idx[np.argmax(z)]
+            gaps[side] = max(0.0, (z.max() - v[a, 2] + POINT_MARGIN) / _MM)
+        return gaps, np.asarray(points), rivals
 
     def _result(self, g, x, meas, plan, targets, weight_kg, iterations) -> MorphResult:
         ch = self._set((x.size - 2) // 2)
@@ -421,11 +467,17 @@ class Morpher:
         scale = 1.0 / mass / _MASS_UNIT * w_mass
         col = np.empty(2 * n_ch)
         project(ch.updown, grad, col)
-        J[-1, :2 * n_ch] = col * scale
+        J[len(keys), :2 * n_ch] = col * scale
         # the serial kernel, not NumPy's dot (see kernels/blend.py: BLAS threads on a busy machine)
         slider = np.empty(2)
         project(moves, grad, slider)
-        J[-1, -2:] = slider * scale
+        J[len(keys), -2:] = slider * scale
+        for side, (gap, a, o) in enumerate(zip(*self._point_gap(v, self.measurer.held_points))):
+            if gap > 0:  # an active hinge: d(z_o - z_a)
+                row = len(keys) + 1 + side
+                J[row, :n_ch] = (ch.incr3[:, o, 2] - ch.incr3[:, a, 2]) / _MM
+                J[row, n_ch:2 * n_ch] = (ch.decr3[:, o, 2] - ch.decr3[:, a, 2]) / _MM
+                J[row, -2:] = (moves3[:, o, 2] - moves3[:, a, 2]) / _MM
         return J
 
     # ----------------------------------------------------------------- checks
