@@ -80,8 +80,9 @@ SEEN_PLANES = 8
 REACH_SOFT = 1e-4
 #: where a reach search pulls that goal: these multiples of its estimate
 REACH_PULL = (0.5, 2.0)
-#: seconds after a solve starts after which no further reach search begins (a failure answers within ~3 s)
-RANGE_SEARCH_UNTIL = 1.0
+#: seconds after a solve starts after which no further reach search begins (a failure answers within ~3 s:
+#: a range costs 0.2-0.5 s; bust 70 + underbust 90 with both ranges 1.4-2.3 s in the process at load ~2.6)
+RANGE_SEARCH_UNTIL = 1.8
 #: the build path's ends. Below -1 the weight slider goes on linearly beyond MakeHuman's 0 (a lean
 #: 195 cm / 75 kg man needs -1.35); above 1 it is not extrapolated: there the heavy corner's faces
 #: turn over (hands, armpits: 22 faces at 1.1, 78 at 1.2 on the male) and the measure targets reach
@@ -538,10 +539,17 @@ class Morpher:
         ends = [value(meas)]
         for far in REACH_PULL:
             # the estimates barely pull here (REACH_SOFT): what limits the range is the other targets
-            x2, meas2, _ = self._fit(g, h, b, plan, definition, push=(name, value(meas) * far, REACH_WEIGHT),
-                                     max_outer=2, max_inner=12, x0=x, soft=REACH_SOFT)
+            push = (name, value(meas) * far, REACH_WEIGHT)
+            x2, meas2, _ = self._fit(g, h, b, plan, definition, push=push, max_outer=2, max_inner=12, x0=x,
+                                     soft=REACH_SOFT)
             if meets_others(meas2):
                 ends.append(value(meas2))
+            if far > 1.0 and x2[-1] >= B_MAX - 1e-9 and x2.size == 2 * self._sets[0].n + 2:
+                # stopped at the heavy corner: go on with the HEAVY channels, as a solve would
+                x3, meas3, _ = self._fit(g, h, b, plan, definition, push=push, max_outer=2, max_inner=12,
+                                         x0=self._sets[0].widen(x2, self._sets[1]), soft=REACH_SOFT, heavy=True)
+                if meets_others(meas3):
+                    ends.append(value(meas3))
         return min(ends), max(ends)
 
 
