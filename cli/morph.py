@@ -39,12 +39,17 @@ def morph(gender, height, weight, definition, output, json_path, quiet, **girths
     """Build a body with exactly the given measurements (each met to 1 mm).
 
     Starts from MakeHuman's young-adult average body of the chosen gender and
-    solves all targets at once; measurements you do not give stay where they
-    were as far as the body allows. Lengths in cm, mass in kg.
+    solves all targets at once. Girths and mass you do not give follow the
+    population (ANSUR II regressions on what you give; marked "(estimated)",
+    with the regression's standard error); a height you do not give stays
+    the average body's. Values outside the population's 1st-99th percentile
+    build with a warning; values no adult body has are refused. Lengths in
+    cm, mass in kg.
 
     \b
-    Example:
+    Examples:
       vfit morph --waist 72 --bust 90 --hips 98 --height 168 -o body.obj
+      vfit morph --height 165 --weight 90      (typical bust, waist, hips shown)
     """
     import time
 
@@ -71,18 +76,15 @@ def morph(gender, height, weight, definition, output, json_path, quiet, **girths
 
     achieved = res.measurement.cm()
     start = res.start.cm()
-    rows = []
-    for k in NAMES:
-        want = targets.get(k)
-        rows.append([f"{k} (cm)", f"{want * 100:.2f}" if want is not None else "-", f"{achieved[k]:.2f}",
-                     f"{(achieved[k] - want * 100) * 10:+.2f}" if want is not None else "",
-                     f"{start[k]:.2f}"])
-    rows.append(["mass (kg)", f"{weight:.2f}" if weight else "-", f"{res.measurement.mass_kg:.2f}",
-                 f"{(res.measurement.mass_kg / weight - 1) * 100:+.2f} %" if weight else "",
-                 f"{res.start.mass_kg:.2f}"])
+    rows = _table_rows(res, targets, weight, achieved, start, NAMES)
+    for line in res.warnings:
+        click.echo(f"warning: {line}", err=True)
     if not quiet:
         click.echo(f"vfit morph: {gender_text} body, definition '{definition}'")
         click.echo(fmt_table(rows, ["measurement", "target", "achieved", "error (mm)", "start"]))
+        if res.estimated:
+            click.echo(f"(estimated): not given, so the population's value for the rest of this body "
+                       f"(± its standard error; {_source()})")
     click.echo(f"wrote {output} (13,380 body vertices, metres, Y up) in {elapsed:.2f} s")
     if json_path:
         write_json(json_path, {
@@ -96,6 +98,11 @@ def morph(gender, height, weight, definition, output, json_path, quiet, **girths
             "achieved": achieved,
             "achieved_weight_kg": round(res.measurement.mass_kg, 3),
             "error_mm": {k: round((achieved[k] - v * 100) * 10, 4) for k, v in targets.items()},
+            "estimated": {k: {"value": round(v * (1.0 if k == "mass" else 100.0), 3),
+                              "standard_error": round(v * sd * (1.0 if k == "mass" else 100.0), 3),
+                              "unit": "kg" if k == "mass" else "cm"} for k, (v, sd) in res.estimated.items()},
+            "population": _source(),
+            "warnings": list(res.warnings),
             "start": start,
             "start_weight_kg": round(res.start.mass_kg, 3),
             "planes_cm": {k: round(v * 100, 2) for k, v in res.measurement.planes.items()},
@@ -113,3 +120,32 @@ def _density():
     from vfit_engine.body.measure import DENSITY
 
     return DENSITY
+
+
+def _estimate(res, name, scale):
+    """Target cell of a value not given: the population's estimate, ± its standard error, or '-'."""
+    if name not in res.estimated:
+        return "-"
+    value, sd = res.estimated[name]
+    return f"{value * scale:.1f} ±{value * sd * scale:.1f} (estimated)"
+
+
+def _source():
+    from vfit_engine.body.population import CITATION
+
+    return CITATION
+
+
+def _table_rows(res, targets, weight, achieved, start, names):
+    """The printed table: target (or the estimate), achieved, error and start of every measurement."""
+    rows = []
+    for k in names:
+        want = targets.get(k)
+        rows.append([f"{k} (cm)", f"{want * 100:.2f}" if want is not None else _estimate(res, k, 100.0),
+                     f"{achieved[k]:.2f}", f"{(achieved[k] - want * 100) * 10:+.2f}" if want is not None else "",
+                     f"{start[k]:.2f}"])
+    rows.append(["mass (kg)", f"{weight:.2f}" if weight else _estimate(res, "mass", 1.0),
+                 f"{res.measurement.mass_kg:.2f}",
+                 f"{(res.measurement.mass_kg / weight - 1) * 100:+.2f} %" if weight else "",
+                 f"{res.start.mass_kg:.2f}"])
+    return rows

@@ -2,7 +2,8 @@
 
 It shares no code with vfit's kernels: the section comes from ``trimesh``, the
 hull from ``scipy.spatial.ConvexHull``, the bands are re-derived here from
-MEASUREMENTS.md and the ruler vertex lists.
+MEASUREMENTS.md and the ruler vertex lists; the bust points from the rig's skin
+weights read straight from ``data/hm08.npz`` (README, "Measurement definitions").
 """
 import json
 from pathlib import Path
@@ -11,12 +12,57 @@ import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull
 
-RULERS = Path(__file__).resolve().parents[1] / "data" / "rulers.json"
+DATA = Path(__file__).resolve().parents[1] / "data"
+RULERS = DATA / "rulers.json"
 BANDS = {  # name: (ruler, below, above, max|min) in metres, from shared/reference/MEASUREMENTS.md
-    "bust": ("bust-circ", 0.03, 0.03, "max"),
     "underbust": ("underbust-circ", 0.02, 0.02, "min"),
     "hips": ("hips-circ", 0.04, 0.04, "max"),
 }
+
+
+def breast_vertices():
+    """Per side, the body vertices whose largest skin weight (> 0.5) is the breast.L / breast.R bone."""
+    with np.load(DATA / "hm08.npz") as d:
+        names = [str(b) for b in d["bone_names"]]
+        bone, vert, w = d["skin_bone"].astype(int), d["skin_vertex"].astype(int), d["skin_weight"].astype(float)
+    out = []
+    for side in ("breast.L", "breast.R"):
+        b = names.index(side)
+        best = {}
+        for bb, vv, ww in zip(bone, vert, w):
+            if vv < 13380 and ww > best.get(vv, (0.0, -1))[0]:
+                best[vv] = (ww, bb)
+        out.append(np.array(sorted(v for v, (ww, bb) in best.items() if bb == b and ww > 0.5)))
+    return out
+
+
+def _apart(mesh, y):
+    """Torso and both arms apart: one loop across x = 0, and another loop wholly on each side of it."""
+    path = mesh.section(plane_origin=[0, y, 0], plane_normal=[0, 1, 0])
+    if path is None:
+        return False
+    xs = [(float(np.min(d[:, 0])), float(np.max(d[:, 0]))) for d in map(np.asarray, path.discrete)]
+    torso = [r for r in xs if r[0] <= 0.0 <= r[1]]
+    return len(torso) == 1 and any(r[1] < torso[0][0] for r in xs) and any(r[0] > torso[0][1] for r in xs)
+
+
+def bust_band(mesh, verts, breasts):
+    """(lo, hi) m: from the bust points' mean height (most anterior breast vertex per side, 10 um below)
+    up, in 1 mm steps, to the last plane whose section shows the torso and both arms apart; where they
+    are not apart there, the one plane just under the armpits (the first apart plane going down)."""
+    y = np.mean([verts[idx[np.argmax(verts[idx, 2])], 1] for idx in breasts]) - 1e-5
+    steps = np.arange(1, 151) * 0.001
+    if _apart(mesh, y):
+        top = y
+        for d in steps[:30]:  # at most 3 cm above the bust points
+            if not _apart(mesh, y + d):
+                break
+            top = y + d
+        return float(y), float(top)
+    for d in steps:
+        if _apart(mesh, y - d):
+            return float(y - d), float(y - d)
+    return float(y), float(y)
 
 
 def torso_hull_girth(mesh: trimesh.Trimesh, y: float) -> float:
@@ -37,15 +83,23 @@ def torso_hull_girth(mesh: trimesh.Trimesh, y: float) -> float:
     return float(np.linalg.norm(np.roll(hull, -1, axis=0) - hull, axis=1).sum())
 
 
-def tape_measure(verts, quads):
-    """ISO-style girths (m) of a body: bust, underbust, waist, hips, height, at 1 mm plane steps."""
+def tape_measure(verts, quads, breasts=None):
+    """ISO-style girths (m) of a body: bust, underbust, waist, hips, height, at 1 mm plane steps.
+
+    ``breasts``: :func:`breast_vertices` (read once and passed in by callers measuring many bodies).
+    """
     rulers = json.loads(RULERS.read_text())["rulers"]
     verts = np.asarray(verts)[:13380]
     tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     mesh = trimesh.Trimesh(verts, tris, process=False)
-    mean_y = {k: verts[rulers[k]["vertex_indices"], 1].mean() for k in ("bust-circ", "underbust-circ", "hips-circ")}
+    bust_lo, bust_hi = bust_band(mesh, verts, breast_vertices() if breasts is None else breasts)
+    mean_y = {k: verts[rulers[k]["vertex_indices"], 1].mean() for k in ("underbust-circ", "hips-circ")}
     bands = {n: (mean_y[r] - lo, mean_y[r] + hi, mode) for n, (r, lo, hi, mode) in BANDS.items()}
+    lo, hi, mode = bands["underbust"]
+    hi = min(hi, bust_lo - 0.01)  # below the bust points by 1 cm, and 4 cm long at least
+    bands["underbust"] = (min(lo, hi - 0.04), hi, mode)
     bands["waist"] = (*sorted((mean_y["hips-circ"], mean_y["underbust-circ"])), "min")
+    bands["bust"] = (bust_lo, bust_hi, "max")
     out = {"height": float(verts[:, 1].max() - verts[:, 1].min())}
     for name, (lo, hi, mode) in bands.items():
         ys = np.linspace(lo, hi, int(np.ceil((hi - lo) / 0.001 - 1e-9)) + 1)

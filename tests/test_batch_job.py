@@ -177,7 +177,7 @@ def test_a_body_that_cannot_be_built_fails_its_tasks_with_the_message(job_dir):
     job = load_job(write_job(job_dir, "garments: [skirt.obj]\nbodies: [{gender: female, waist: 20}]\n"))
     payload = job.tasks[0].payload()
     built = build_body(payload["body"])
-    assert built[0] is None and "cannot be reached" in built[1] and built[2] > 0
+    assert built[0] is None and "refused: waist" in built[1] and built[2] > 0
     row = run_task(payload, built)
     assert row["status"] == "failed" and "waist" in row["error"] and row["times_s"]["body"] > 0
 

@@ -55,6 +55,26 @@ def test_morph_then_measure(tmp_path):
         assert abs(got[k] - want) <= 0.1, k
 
 
+def test_morph_estimates_and_warnings(tmp_path):
+    """--height and --weight alone: the survey's typical girths, marked (estimated) with their standard
+    error, in the table and the JSON; a value outside the 1st-99th percentile warns on stderr."""
+    report = tmp_path / "b.json"
+    r = CliRunner().invoke(cli, ["morph", "--height", 180, "--weight", 110, "-o", str(tmp_path / "b.obj"),
+                                 "--json", str(report)])
+    assert r.exit_code == 0, r.output
+    rows = {ln.split(" (cm)")[0]: ln for ln in r.stdout.splitlines() if " (cm)" in ln}
+    for k in ("bust", "underbust", "waist", "hips", "neck", "upper-arm", "thigh", "calf"):
+        assert "(estimated)" in rows[k] and " ±" in rows[k], rows[k]
+    assert "(estimated)" not in rows["height"]
+    # NHANES 2017-2018 women: 110 kg is at percentile 94, 180 cm beyond the 99th
+    assert "warning: height is at percentile 99.7" in r.stderr and "of adult women (NHANES 2017-2018)" in r.stderr
+    rep = json.loads(report.read_text())
+    assert rep["estimated"]["waist"]["unit"] == "cm" and rep["estimated"]["waist"]["standard_error"] > 0
+    assert abs(rep["achieved"]["waist"] - rep["estimated"]["waist"]["value"]) <= rep["estimated"]["waist"][
+        "standard_error"]
+    assert "NHANES 2017-2018" in rep["population"] and len(rep["warnings"]) == 1
+
+
 def test_morph_default_output_and_ply(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     r = run("morph", "--waist", 68)
@@ -81,9 +101,9 @@ def test_morph_usage_errors(tmp_path, args, needle):
 
 
 @pytest.mark.parametrize("args,needle", [
-    (["--waist", "20"], "reachable"),
-    (["--bust", "70", "--underbust", "90"], "cannot be met together"),
-    (["--weight", "400", "--height", "150"], "reachable"),
+    (["--waist", "20"], "refused: waist is 8.5 standard deviations below"),
+    (["--bust", "70", "--underbust", "90"], "cannot be met together: bust 70.0 cm ("),
+    (["--weight", "400", "--height", "150"], "refused: mass is 6.4 standard deviations above"),
 ])
 def test_morph_unreachable(tmp_path, args, needle):
     out = tmp_path / "x.obj"

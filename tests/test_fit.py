@@ -216,3 +216,29 @@ def test_preview_garment_pixels_take_the_maps_colour(name, value, other):
     match = np.linalg.norm(chroma(lit) - chroma(want), axis=1) < 0.15
     assert match.sum() > 0.05 * img.shape[0] * img.shape[1]
     assert np.abs(draw(other) - img).max() > 0.2
+
+
+def test_a_chest_at_the_armpits_counts_only_the_cloth_below_them(body_model):
+    """A man whose chest is taken just under his armpits (180 cm, chest 106: the arms join the torso 24 mm
+    above his bust points): his chest row counts the cloth from 2 cm below its plane up to where the arms
+    join, not the armhole edges above; his waist row the full band. A ring of edges stepping up through the
+    plane: those above the armpit level are left out."""
+    from vfit_engine.body.resolve import resolve_body
+    from vfit_engine.fit.table import BAND, FitTable, _Plane, _round_edges
+
+    table = FitTable(resolve_body(body_model, targets={"height": 1.80, "bust": 1.06}, gender="male"), body_model)
+    chest = next(p for name, _, p, *_ in table.regions if name == "chest")
+    above = table._above["chest"]
+    assert 0.0 <= above < BAND and table._above["waist"] == BAND
+    sections = table.measurer.sections
+    assert sections.apart(table.body_verts, [chest.height, chest.height + above]).all()
+    assert not sections.apart(table.body_verts, [chest.height + above + 0.001])[0]
+    # eight short edges round the plane at heights -15 .. +18 mm
+    ys = chest.height + np.linspace(-0.015, 0.018, 8)
+    pos = np.array([[x, y, 0.0] for y in ys for x in (-0.001, 0.001)])
+    edges = np.arange(16).reshape(8, 2)
+    eq = np.array([[1.0, 0.0, -1.0], [-1.0, 0.0, -1.0], [0.0, 1.0, -1.0], [0.0, -1.0, -1.0]])  # |x|, |z| <= 1 m
+    plane = _Plane(np.array([0.0, chest.height, 0.0]), (0.0, 1.0, 0.0))
+    assert _round_edges(edges, pos, plane, eq).tolist() == [True] * 8
+    kept = _round_edges(edges, pos, plane, eq, above=above)
+    assert kept.tolist() == (ys - chest.height <= above).tolist() and 0 < kept.sum() < 8

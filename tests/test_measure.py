@@ -75,3 +75,28 @@ def test_every_definition_reports_every_name(body_model, measurer):
         assert all(np.isfinite(vals[k]) for k in NAMES), d
     with pytest.raises(ValueError):
         measurer.measure(verts, "tailor")
+
+
+def _arms_apart_reference(loops):
+    """The arms-apart rule in plain NumPy: one loop spanning x = 0, another wholly on each side."""
+    torso = [p for p in loops if p[:, 0].min() <= 0.0 <= p[:, 0].max()]
+    if len(torso) != 1:
+        return False
+    x0, x1 = torso[0][:, 0].min(), torso[0][:, 0].max()
+    return any(p[:, 0].max() < x0 for p in loops) and any(p[:, 0].min() > x1 for p in loops)
+
+
+def test_arms_apart_kernel_matches_numpy(body_model, measurer):
+    """The bust band's arms-apart kernel (all planes in one call, one edge selection) against the loops read
+    one by one, on seeded random planes through the chest and armpits of both default bodies."""
+    rng = np.random.default_rng(11)
+    sections = measurer.sections
+    seen = set()
+    for gender in ("female", "male"):
+        verts = np.ascontiguousarray(body_model.default_verts(gender)[:sections.n_verts])
+        y0 = measurer.bust_band(verts)[0]
+        ys = rng.uniform(y0 - 0.15, y0 + 0.1, 150)
+        want = [_arms_apart_reference(sections.loops(verts, y)) for y in ys]
+        assert sections.apart(verts, ys).tolist() == want, gender
+        seen.update(want)
+    assert seen == {True, False}

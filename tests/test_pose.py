@@ -51,24 +51,37 @@ def test_makehuman_poses_are_z_up_and_name_every_bone(body_model):
 @needs_poses
 @pytest.mark.parametrize("pose", ["sit01.bvh", "run01.bvh", "fight02.bvh"])
 def test_a_pose_on_a_morphed_body_keeps_its_joints_inside_it(body_model, pose):
+    from body_checks import winding_numbers
     from vfit_engine.body.resolve import resolve_body
-    from vfit_engine.collide.body_mesh import MeshCollider
 
-    body = resolve_body(body_model, targets={"waist": 0.84, "hips": 1.08, "height": 1.62}, gender="female")
+    # a short pear-shaped woman of 60.3 kg with slim arms and thighs: the body this test built before the
+    # population filled in what is not given (given only waist, hips and height it is now 67 kg; it passes
+    # too, though fight02 then stretches 1 % of the edges beyond +69.5 %, near the bound below)
+    body = resolve_body(body_model, targets={"waist": 0.84, "hips": 1.08, "height": 1.62, "upper-arm": 0.2325,
+                                             "thigh": 0.537}, weight_kg=60.3, gender="female")
     posed = pose_body(body_model, body.verts, read_bvh(POSES / pose))
     n = 13380
     assert np.isfinite(posed.verts).all() and np.abs(posed.verts[:n] - body.verts[:n]).max() > 0.1
-    collider = MeshCollider(posed.verts[:n], body_model.body_tris)
     joints = np.array([posed.heads[list(body_model.bone_names).index(j)] for j in CORE_JOINTS])
-    inside = collider.penetration(joints)
-    assert inside["inside_mask"].all(), dict(zip(CORE_JOINTS, np.round(1000 * inside["depth_m"], 1)))
+    # inside by winding number, not by the nearest skin's normal (MeshCollider.penetration): skinning lets
+    # a posed body pass through itself, and sit01 rests the left forearm on the knee. On this body (and on
+    # MakeHuman's own average woman) 60 forearm vertices sink into the knee; the nearest skin to the knee
+    # joint is then the forearm's, 33 mm away and facing it, so the joint read "outside" though it is 43 mm
+    # from its leg's skin, winding number 1.000. Measured: every core joint 1.000 in all three poses
+    winding = winding_numbers(posed.verts[:n], body_model.body_tris, joints)
+    assert (winding > 0.5).all(), dict(zip(CORE_JOINTS, np.round(winding, 2)))
     # edges keep their length where the skin is carried rigidly; skinning stretches the skin over a bent
-    # knee or a raised shoulder (measured: 1 % of the edges beyond +62 % with fight02's arms overhead, the
-    # longest 5.9x a 12 mm edge at the shoulder; sit01 and run01 beyond +50 % on fewer), never tears it
+    # knee or a raised shoulder (measured: 1 % of the edges beyond +65 % with fight02's arms overhead;
+    # sit01 and run01 beyond +32 %), never tears it. A tear is bounded as a length, not a ratio: fight02's
+    # most stretched edges, in the armpit crease, end 70-83 mm long on every woman of this size while their
+    # rest length follows the build (edge 1339: 5.7 mm on MakeHuman's average woman, 11.8x; 12.1 mm on an
+    # older morph's body for these targets, 5.9x; 14.8 mm at the heavy corner). Measured growth: 68 mm in
+    # fight02, 36 in sit01, 22 in run01; a vertex carried by a wrong bone would move tens of cm
     e = body_model.body_tris[:, [0, 1]]
-    ratio = np.linalg.norm(posed.verts[e[:, 0]] - posed.verts[e[:, 1]], axis=1) / np.linalg.norm(
-        body.verts[e[:, 0]] - body.verts[e[:, 1]], axis=1)
-    assert np.median(np.abs(ratio - 1)) < 0.01 and np.percentile(ratio, 99) < 1.7 and ratio.max() < 8.0
+    rest = np.linalg.norm(body.verts[e[:, 0]] - body.verts[e[:, 1]], axis=1)
+    length = np.linalg.norm(posed.verts[e[:, 0]] - posed.verts[e[:, 1]], axis=1)
+    ratio = length / rest
+    assert np.median(np.abs(ratio - 1)) < 0.01 and np.percentile(ratio, 99) < 1.7 and (length - rest).max() < 0.09
 
 
 @needs_poses

@@ -336,3 +336,13 @@ def check_body(verts, tris):
 
 def test_body_girths_match_trimesh_and_scipy(body):
     check_body(*body)
+
+
+
+def test_apart_on_cylinders():
+    """Three cylinders: apart; an arm moved onto the torso's x-range: not apart (the body: test_measure)."""
+    torso, left, right = _cylinder(0.15, 40), _cylinder(0.05, 24, x=-0.4), _cylinder(0.05, 24, x=0.4)
+    mesh = trimesh.util.concatenate((left, torso, right))
+    assert _sections(mesh).apart(mesh.vertices, [0.1]).tolist() == [True]
+    mesh = trimesh.util.concatenate((left, torso, _cylinder(0.05, 24, x=0.12)))
+    assert _sections(mesh).apart(mesh.vertices, [0.1]).tolist() == [False]

@@ -145,4 +145,6 @@ def test_model_examples_against_the_solver(hm08):
     # the shape-factor body is nearer the true example than the solver's body is
     assert rows[:, 1].max() < 1.5 and rows[:, 3].max() < 1.5
     assert rows[:, 0].max() < 10.0
-    assert np.all(rows[:, 1] < rows[:, 2])
+    # on average: the solver's body has its other girths and mass from the survey (issue 11) where the
+    # examples keep them at the average body's, so on one of the six it now comes a little nearer
+    assert rows[:, 1].mean() < 0.5 * rows[:, 2].mean()

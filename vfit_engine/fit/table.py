@@ -16,7 +16,8 @@ round the region), ``garment_girth_cm`` (a tape round the draped garment in the 
 outside: the hull of the outermost garment loop that goes round the region; for an opening, its
 draped length), ``ease_cm`` (their difference), ``girth_strain`` (how far the cloth round the region
 is stretched: sum l / sum l0 - 1 over the garment's yarn edges that run round it within ``BAND`` of
-the plane; for an opening, its draped length over its length as given), ``max_strain`` (the largest
+the plane, and no higher than where the body's arms join its torso: a man's chest is taken just under the
+armpits, and above them a shirt's edges run round its armholes and sleeve caps; for an opening, its draped length over its length as given), ``max_strain`` (the largest
 yarn strain there, edges >= 3 mm), ``pressure_kpa_max`` (:mod:`.maps`) and the verdict:
 
 * ``tight``  the cloth round the region is stretched by more than ``TIGHT_SHARE`` of the stretch the
@@ -119,9 +120,10 @@ def _limb_planes(model, verts):
     return out
 
 
-def _round_edges(edges, pos, plane, hull_eq, margin=0.01):
-    """Mask of the yarn edges that run round the region: both ends within ``BAND`` of the plane, the
-    edge within 60 degrees of it, and its midpoint inside the garment's hull (+ ``margin``)."""
+def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND):
+    """Mask of the yarn edges that run round the region: both ends within ``BAND`` of the plane (and at
+    most ``above`` over it), the edge within 60 degrees of it, and its midpoint inside the garment's hull
+    (+ ``margin``)."""
     a, b = pos[edges[:, 0]], pos[edges[:, 1]]
     off_a, off_b = (a - plane.centre) @ plane.normal, (b - plane.centre) @ plane.normal
     d = b - a
@@ -129,7 +131,8 @@ def _round_edges(edges, pos, plane, hull_eq, margin=0.01):
     along = np.abs(d @ plane.normal) <= ROUND_COS * np.maximum(length, 1e-12)
     mid = (0.5 * (a + b)) @ plane.rot.T
     inside = np.all(mid[:, [0, 2]] @ hull_eq[:, :2].T + hull_eq[:, 2] <= margin, axis=1)
-    return (np.abs(off_a) <= BAND) & (np.abs(off_b) <= BAND) & along & inside
+    return ((np.abs(off_a) <= BAND) & (np.abs(off_b) <= BAND) & (off_a <= above) & (off_b <= above) & along
+            & inside)
 
 
 class FitTable:
@@ -145,6 +148,7 @@ class FitTable:
         self.gender = body.gender
         m = self.measurer.measure(self.body_verts, names=TORSO, mass=False)
         self.regions = []  # (region, side, plane, reach, body girth m)
+        self._above = {}  # torso region -> how far above its plane its cloth counts (m)
         self.chest_y = float(m.planes["bust"])
         g = self.gender
         # a body file's gender is unknown (None): women's names (bust, underbust), which measure a man too
@@ -155,12 +159,22 @@ class FitTable:
             centre, half = self._torso_centre(m.planes[name])
             label = "chest" if name == "bust" and not female else name
             self.regions.append((label, "", _Plane(centre, (0.0, 1.0, 0.0)), 1.0, float(m.values[name]), half))
+            self._above[label] = self._below_armpits(m.planes[name])
         # the body's sections round the openings, built once for every drape on this body
         self.loops = BodyLoops(self.body_verts, model.body_tris)
         for name, side, plane, reach in _limb_planes(model, self.body_verts):
             loops = plane.loops_round(self.measurer.sections, self.body_verts, reach)
             if loops:
                 self.regions.append((name, side, plane, reach, loops[-1][1], None))
+
+    def _below_armpits(self, y):
+        """How far above a torso plane at ``y`` the cloth round it counts: ``BAND``, or less where the body's
+        arms join its torso sooner (a chest taken just under the armpits): above there a garment's edges run
+        round its armholes and sleeve caps, not round the chest."""
+        steps = np.arange(1, int(round(BAND / 0.001)) + 1) * 0.001
+        apart = self.measurer.sections.apart(self.body_verts, y + steps)
+        below = self.measurer.sections.apart(self.body_verts, [y])[0]
+        return float(steps[int(np.argmin(apart))] - 0.001) if below and not apart.all() else BAND
 
     def _torso_centre(self, y):
         """Centre (3,) of the torso loop's hull at height ``y`` (the largest loop spanning x = 0) and the
@@ -193,7 +207,7 @@ class FitTable:
             if not loops:
                 continue  # the garment does not go round this region
             hull, girth, eq = loops[0]
-            sel = _round_edges(edges, pos, plane, eq) & (l0 > 0)
+            sel = _round_edges(edges, pos, plane, eq, above=self._above.get(name, BAND)) & (l0 > 0)
             if not sel.any():
                 continue
             strain = length[sel] / l0[sel] - 1.0

@@ -295,3 +295,51 @@ def scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x
             continue
         lp = pts_out[loop_start_out[best]:loop_start_out[best + 1]]
         girth_out[i] = loop_girth(lp, method, samples, order, hull, work)
+
+
+@njit
+def apart_planes(verts, tris, edges, tri_edges, edge_tris, ys,
+                 cand, visited, cut, pts_out, loop_start_out, loop_closed_out, apart_out):
+    """Whether the torso and both arms are apart at every plane ``y = ys[i]``: its section has exactly one
+    loop whose x-range holds x = 0 (the torso) and, wholly to either side of that loop's x-range, at least
+    one other loop (an arm). The edges that can meet ``[min(ys), max(ys)]`` are selected once.
+
+    Arguments as :func:`scan_girths`; ``apart_out`` : (k,) int64 receives 1 or 0 per plane.
+    """
+    k = ys.shape[0]
+    if k == 0:
+        return
+    y_lo = ys[0]
+    y_hi = ys[0]
+    for i in range(1, k):
+        y_lo = min(y_lo, ys[i])
+        y_hi = max(y_hi, ys[i])
+    n_cand = select_band_edges(verts, edges, y_lo, y_hi, cand)
+    for i in range(k):
+        n_pts, n_loops = section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, ys[i],
+                                       visited, cut, pts_out, loop_start_out, loop_closed_out)
+        n_torso = 0
+        t_lo = 0.0
+        t_hi = 0.0
+        for j in range(n_loops):
+            lo = np.inf
+            hi = -np.inf
+            for p in range(loop_start_out[j], loop_start_out[j + 1]):
+                lo = min(lo, pts_out[p, 0])
+                hi = max(hi, pts_out[p, 0])
+            if lo <= 0.0 <= hi:
+                n_torso += 1
+                t_lo = lo
+                t_hi = hi
+        left = False
+        right = False
+        if n_torso == 1:
+            for j in range(n_loops):
+                lo = np.inf
+                hi = -np.inf
+                for p in range(loop_start_out[j], loop_start_out[j + 1]):
+                    lo = min(lo, pts_out[p, 0])
+                    hi = max(hi, pts_out[p, 0])
+                left = left or hi < t_lo
+                right = right or lo > t_hi
+        apart_out[i] = 1 if (left and right) else 0

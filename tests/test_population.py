@@ -1,0 +1,60 @@
+"""The population model (log-normal, fitted to NHANES 2017-2018, bdims and ANSUR II): conditional means against the bivariate formula,
+anchoring, percentiles, warnings and refusals. No body model: milliseconds."""
+import numpy as np
+import pytest
+
+from vfit_engine.body.population import _R, REFUSE_Z, VARIABLES, WARN_Z, PopulationModel, percentile
+
+
+def test_conditional_mean_is_the_bivariate_regression():
+    """Given stature alone, the mass median follows exp(mu_M + r s_M / s_H (log H - mu_H)), with
+    standard error s_M sqrt(1 - r^2)."""
+    pop = PopulationModel(1.0)
+    h = 1.90
+    med, sd = pop.predict({"height": h})
+    i, j = VARIABLES.index("height"), VARIABLES.index("mass")
+    r = pop.cov[i, j] / (pop.sd[i] * pop.sd[j])
+    assert r == pytest.approx(_R["male"][0, 1]) and 0.4 < r < 0.55  # NHANES men: 0.47
+    want = np.exp(pop.mu[j] + r * pop.sd[j] / pop.sd[i] * (np.log(h) - pop.mu[i]))
+    assert med["mass"] == pytest.approx(want, rel=1e-12)
+    assert sd["mass"] == pytest.approx(pop.sd[j] * np.sqrt(1 - r ** 2), rel=1e-12)
+    assert set(med) == set(VARIABLES) - {"height"}
+    assert pop.predict({k: 1.0 for k in VARIABLES}) == ({}, {})
+
+
+def test_medians_and_girths_grow_with_mass():
+    pop = PopulationModel(0.0)
+    med, _ = pop.predict({})
+    assert med["height"] == pytest.approx(1.595) and med["mass"] == pytest.approx(74.4)  # NHANES women 20+
+    light, _ = pop.predict({"height": 1.65, "mass": 55.0})
+    heavy, _ = pop.predict({"height": 1.65, "mass": 95.0})
+    for k in ("bust", "waist", "hips", "neck", "upper-arm", "thigh", "calf"):
+        assert heavy[k] > light[k] * 1.05, k
+
+
+def test_anchored_model_makes_the_anchor_body_typical():
+    """After anchoring, the anchor body's girths are the conditional medians given its height and mass."""
+    body = {"height": 1.59, "mass": 47.2, "bust": 0.841, "waist": 0.652, "hips": 0.947, "neck": 0.286,
+            "upper-arm": 0.229, "thigh": 0.509, "calf": 0.353}
+    pop = PopulationModel(0.0).anchored(body)
+    med, _ = pop.predict({"height": body["height"], "mass": body["mass"]})
+    for k in VARIABLES[2:]:
+        assert med[k] == pytest.approx(body[k], rel=1e-12), k
+
+
+def test_percentiles_warnings_and_refusals():
+    pop = PopulationModel(0.0)
+    assert percentile(0.0) == pytest.approx(50.0) and percentile(WARN_Z) == pytest.approx(99.0, abs=0.01)
+    typical = pop.assess({"height": 1.63, "mass": 68.0})
+    assert typical.warnings() == [] and typical.refusals() == []
+    # NHANES women: 110 kg at 1.60 m is at percentile 93 (no warning); 150 kg is beyond the 99th
+    assert pop.assess({"height": 1.60, "mass": 110.0}).warnings() == []
+    heavy = pop.assess({"height": 1.60, "mass": 150.0})
+    assert heavy.refusals() == [] and "mass is at percentile 99.60 of adult women" in heavy.warnings()[0]
+    waist = pop.quantile("waist", -REFUSE_Z - 0.1)
+    refused = pop.assess({"waist": waist}).refusals()
+    assert len(refused) == 1 and "5.1 standard deviations below the mean of adult women" in refused[0]
+    # a common waist with hips far too large for it: warned given the others, not refused
+    # (+2.5 SD: waist and hips correlate 0.93 in the fitted model, so +3 SD with a median waist is refused)
+    odd = pop.assess({"waist": pop.quantile("waist", 0.0), "hips": pop.quantile("hips", 2.5)})
+    assert odd.refusals() == [] and "with the other measurements given" in " ".join(odd.warnings())

@@ -1,0 +1,172 @@
+"""Issue 11: every customer's body. The reach list built and measured independently, the extremes
+still human, bust above underbust, estimates within the survey's standard error, plausibility
+warnings and refusals, and error ranges whose ends are reachable.
+
+Solves share the session's Morpher and each body is solved once (``_solved``); no mesh is written.
+"""
+import re
+
+import numpy as np
+import pytest
+import trimesh
+
+from body_checks import inverted_faces, section_overlap
+from tape import breast_vertices, tape_measure
+from vfit_engine.errors import InputError
+
+MM = 1e-3
+DENSITY = 985.0  # kg/m^3, as the issue states it
+# (id, gender, targets in cm, weight kg): issue 11 section 1
+REACH = [
+    ("women-34", "female", dict(height=168, bust=80, waist=64, hips=90), None),
+    ("women-38", "female", dict(height=168, bust=88, waist=72, hips=97), None),
+    ("women-42", "female", dict(height=168, bust=96, waist=80, hips=103), None),
+    ("women-46", "female", dict(height=168, bust=106, waist=90, hips=112), None),
+    ("women-50", "female", dict(height=168, bust=118, waist=102, hips=124), None),
+    ("women-54", "female", dict(height=168, bust=130, waist=114, hips=136), None),
+    ("men-46", "male", dict(height=180, bust=92, waist=80, hips=96), None),
+    ("men-50", "male", dict(height=180, bust=100, waist=88, hips=102), None),
+    ("men-54", "male", dict(height=180, bust=108, waist=98, hips=108), None),
+    ("men-58", "male", dict(height=180, bust=116, waist=108, hips=114), None),
+    ("men-62", "male", dict(height=180, bust=124, waist=117, hips=121), None),
+    ("women-150-45", "female", dict(height=150), 45.0),
+    ("women-165-90", "female", dict(height=165), 90.0),
+    ("women-160-110", "female", dict(height=160), 110.0),
+    ("men-175-130", "male", dict(height=175), 130.0),
+    ("men-195-75", "male", dict(height=195), 75.0),
+    ("women-w110-h130", "female", dict(waist=110, hips=130), None),
+]
+CASES = {c[0]: c for c in REACH}
+#: the extremes whose torso girths the independent tape re-measures and whose shape is checked
+EXTREMES = ("women-34", "women-54", "men-62", "women-160-110", "men-175-130", "men-195-75", "women-w110-h130")
+TAPED = ("women-54", "men-62")  # the two sizes the issue found out of reach: re-measured by the independent tape
+_solved = {}
+
+
+def _solve(morpher, case_id):
+    if case_id not in _solved:
+        _, gender, cm, kg = CASES[case_id]
+        _solved[case_id] = morpher.solve({k: v / 100 for k, v in cm.items()}, gender=gender, weight_kg=kg)
+    return _solved[case_id]
+
+
+@pytest.fixture(scope="module")
+def breasts():
+    return breast_vertices()
+
+
+@pytest.mark.parametrize("case_id", [c[0] for c in REACH])
+def test_reach_list(morpher, body_model, breasts, case_id):
+    """Girths and height to 1 mm, mass to 0.5 kg as trimesh's volume x 985 kg/m^3; the torso girths
+    of the largest sizes by the independent tape (trimesh sections + scipy hulls; ~1.5 s a body, so
+    only there: ``scripts/reach_check.py`` tapes every body of the list through the CLI)."""
+    _, gender, cm, kg = CASES[case_id]
+    res = _solve(morpher, case_id)
+    verts = res.verts[:13380]
+    mesh = trimesh.Trimesh(verts, body_model.body_tris, process=False)
+    assert mesh.volume > 0
+    if kg is not None:
+        assert abs(mesh.volume * DENSITY - kg) <= 0.5
+    if "height" in cm:
+        assert abs(verts[:, 1].max() - verts[:, 1].min() - cm["height"] / 100) <= MM
+    for k, v in cm.items():
+        assert abs(res.measurement.values[k] - v / 100) <= MM, (k, res.measurement.values[k])
+    if case_id in TAPED:
+        tape = tape_measure(res.verts, body_model.body_quads, breasts)
+        for k, v in cm.items():
+            assert abs(tape[k] - v / 100) <= MM, (k, tape[k])
+    # the bust plane is above the underbust plane on every body (the low-bust case of the issue)
+    assert res.measurement.planes["bust"] > res.measurement.planes["underbust"] + 0.009
+
+
+@pytest.mark.parametrize("case_id", EXTREMES)
+def test_extremes_stay_human(morpher, body_model, case_id):
+    """No part into another beyond flesh contact (section loops of arms, torso and thighs overlap by
+    < 10 mm, 1.5 cm apart from knee to shoulder); faces turned over: at most 12 of the 26,756 beyond
+    those MakeHuman's own heaviest body of the gender turns (4 on the male head). Measured: 0-2 on
+    every extreme but the 175 cm / 130 kg man: 8 (his estimated 140 cm chest pulled the bust channel to 1,
+    which turned 24 under the pectorals, at the armpits and throat; channels.INCR_MAX now holds it at 0.8);
+    extrapolating the weight slider to 1.2 instead turns 78."""
+    _, gender, _, _ = CASES[case_id]
+    res = _solve(morpher, case_id)
+    verts = res.verts[:13380]
+    tris = body_model.body_tris
+    y0, y1 = verts[:, 1].min(), verts[:, 1].max()
+    depth, _ = section_overlap(verts, tris, np.arange(y0 + 0.3 * (y1 - y0), y0 + 0.8 * (y1 - y0), 0.015))
+    assert depth < 0.010, depth
+    ref = body_model.default_verts(gender)[:13380]
+    corner = morpher._body(morpher.macro(morpher.macro(0.0 if gender == "female" else 1.0, 0.5, 1.0).gender,
+                                         0.5, 1.0), np.zeros(len(morpher._channel_names)))
+    assert inverted_faces(verts, ref, tris) <= inverted_faces(corner, ref, tris) + 12
+
+
+def test_low_bust_stays_above_underbust(measurer, body_model):
+    """Breasts lowered 9 cm along their bones' skin weights: the bust points fall below the top of the
+    underbust ruler's +-2 cm band; the bust band starts at the bust points and the underbust band is
+    cut 1 cm below them, so the two never swap."""
+    bone, vert, w = body_model.skin
+    on = np.isin(bone, [body_model.bone_names.index(b) for b in ("breast.L", "breast.R")]) & (vert < 13380)
+    weight = np.zeros(13380)
+    np.add.at(weight, vert[on], w[on])
+    verts = body_model.default_verts("female")[:13380].copy()
+    verts[:, 1] -= 0.09 * weight
+    got = measurer.measure(verts, names=("bust", "underbust"), mass=False)
+    bust_points = measurer.bust_band(verts)[0]
+    ruler_top = verts[body_model.rulers["underbust-circ"]["vertex_indices"], 1].mean() + 0.02
+    assert bust_points < ruler_top - 0.005  # the case a fixed band would get wrong
+    assert got.planes["underbust"] <= bust_points - 0.01 + 1e-9 and got.planes["bust"] >= bust_points
+    assert got.values["bust"] > got.values["underbust"] + 0.05
+
+
+def test_estimates_within_the_regression_standard_error(morpher):
+    """--height 165 --weight 90: the girths not given land within one standard error of the survey's
+    estimate, and grow with mass against --weight 60."""
+    res = morpher.solve({"height": 1.65}, weight_kg=90.0)
+    light = morpher.solve({"height": 1.65}, weight_kg=60.0)
+    assert set(res.estimated) == {"bust", "underbust", "waist", "hips", "neck", "upper-arm", "thigh", "calf"}
+    for k, (value, sd) in res.estimated.items():
+        assert abs(res.measurement.values[k] - value) <= value * sd, (k, res.measurement.values[k], value)
+        assert res.measurement.values[k] > light.measurement.values[k] + 0.01, k
+
+
+def test_plausibility_warning_and_refusal(morpher):
+    """A 60 cm waist with 110 cm hips builds, warned with its percentile; a 33 cm waist, or a 55 cm
+    waist with 130 cm hips (waist-to-hip 0.42), is refused with the reason."""
+    res = morpher.solve({"height": 1.68, "waist": 0.60, "hips": 1.10})
+    text = " ".join(res.warnings)
+    assert "waist is at percentile" in text and "with the other measurements given (NHANES 2017-2018" in text
+    with pytest.raises(InputError, match=r"refused: waist is 5\.\d standard deviations below the mean of adult women"):
+        morpher.solve({"waist": 0.33})
+    with pytest.raises(InputError, match=r"refused: waist is 9\.\d standard deviations below what adult women "
+                                         r"with the other measurements given have"):
+        morpher.solve({"height": 1.68, "waist": 0.55, "hips": 1.30})
+    # NHANES's 99th-percentile-waist man (waist taped over the belly): no body's narrowest waist exceeds its hips
+    with pytest.raises(InputError, match=r"refused: waist 143\.8 cm is more than hips 138\.2 cm"):
+        morpher.solve({"height": 1.772, "waist": 1.438, "hips": 1.382}, gender="male", weight_kg=141.9)
+
+
+def test_flat_chest_builds(morpher, body_model, breasts):
+    """The survey's 1st-percentile chest of men (168.2 cm, 52.1 kg, chest 87.1, waist 66.8, hips 88.0): two
+    rows of his flat chest tie for the bust point, and the chest band jumped 13 mm between them under the
+    solver's steps; it stopped 1.4 mm short of the waist. Re-measured by the independent tape."""
+    cm = dict(height=168.153, bust=87.134, waist=66.814, hips=88.018)
+    res = morpher.solve({k: v / 100 for k, v in cm.items()}, gender="male", weight_kg=52.095)
+    tape = tape_measure(res.verts, body_model.body_quads, breasts)
+    for k, v in cm.items():
+        assert abs(tape[k] - v / 100) <= MM, (k, tape[k])
+
+
+def test_error_range_ends_are_reachable(morpher, monkeypatch):
+    """bust 70 with underbust 90 cannot be met; the bust range given the underbust is printed, and
+    both its ends are then built. (The range search's time limit is lifted: this machine's load must
+    not decide whether the range is printed; bench_morph times the failure.)"""
+    import vfit_engine.body.morph as morph
+
+    monkeypatch.setattr(morph, "RANGE_SEARCH_UNTIL", 60.0)
+    with pytest.raises(InputError, match="cannot be met together") as err:
+        morpher.solve({"bust": 0.70, "underbust": 0.90})
+    lo, hi = map(float, re.search(r"bust 70\.0 cm \(reachable (\d+\.\d)-(\d+\.\d) cm", str(err.value)).groups())
+    assert hi - lo > 5.0
+    for end in (lo, hi):
+        res = morpher.solve({"bust": end / 100, "underbust": 0.90})
+        assert abs(res.measurement.values["bust"] - end / 100) <= MM
