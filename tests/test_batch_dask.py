@@ -124,10 +124,15 @@ def _worker_pids(parent):
 
 
 def test_a_worker_killed_mid_task_costs_a_retry_not_a_row(job_dir, tmp_path):
-    """The acceptance run: 2 garments x 3 bodies on 2 workers, one worker SIGKILLed while both drape."""
+    """The acceptance run: 2 garments x 3 bodies on 2 workers, one worker SIGKILLed while both drape.
+
+    The third body is given its mass: given only a height of 160 cm, a woman's mass and girths follow the
+    population (75 kg, hips 117.5 cm), and the demo skirt in jersey on her has not settled in 600 frames (its
+    hem still swings 0.1 mm a frame: a drape limit reported in issue 8, not what this test is about)."""
     (job_dir / "job.yaml").write_text(
         "garments: [skirt.obj, {path: skirt.obj, material: jersey}]\n"
-        "bodies: [{gender: female}, {gender: female, waist: 70, hips: 97}, {gender: female, height: 160}]\n")
+        "bodies: [{gender: female}, {gender: female, waist: 70, hips: 97},"
+        " {gender: female, height: 160, weight: 55}]\n")
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "vfit_cli.main", "batch", str(job_dir / "job.yaml"), "-o", str(out),
            "--workers", "2"]

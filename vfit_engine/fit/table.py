@@ -17,8 +17,9 @@ outside: the hull of the outermost garment loop that goes round the region; for 
 draped length), ``ease_cm`` (their difference), ``girth_strain`` (how far the cloth round the region
 is stretched: sum l / sum l0 - 1 over the garment's yarn edges that run round it within ``BAND`` of
 the plane, and no higher than where the body's arms join its torso: a man's chest is taken just under the
-armpits, and above them a shirt's edges run round its armholes and sleeve caps; for an opening, its draped length over its length as given), ``max_strain`` (the largest
-yarn strain there, edges >= 3 mm), ``pressure_kpa_max`` (:mod:`.maps`) and the verdict:
+armpits, and above them a shirt's edges run round its armholes and sleeve caps; for an opening, its
+draped length over its length as given), ``max_strain`` (the largest yarn strain there, edges >= 3 mm),
+``pressure_kpa_max`` (:mod:`.maps`) and the verdict:
 
 * ``tight``  the cloth round the region is stretched by more than ``TIGHT_SHARE`` of the stretch the
   fabric gives (``Material.wearable_stretch``: cotton 10 % -> 3 %, jersey 30 % -> 9 %, denim 5 % -> 1.5 %),
