@@ -62,9 +62,10 @@ def test_benchmarks_refuse_a_bad_material_naming_the_key(tmp_path, capsys, bench
     assert "--step 50 ms: use 0.001-20 ms" in capsys.readouterr().err
 
 
-def test_cusick_is_the_same_at_7_and_10_mm():
-    """Resolution independence (reduced: the benchmark compares 5 and 10 mm, BENCHMARKS.md)."""
-    coarse = drape_test(PRESETS["cotton"], edge=0.010)
-    fine = drape_test(PRESETS["cotton"], edge=0.007)
+def test_cusick_is_the_same_at_8_and_12_mm():
+    """Resolution independence (reduced: the benchmark compares 5 and 10 mm, BENCHMARKS.md; 8 and 12 mm cost
+    28 s here against 90 s for 7 and 10 mm, with 2.1x the vertices: cotton 0.562 / 0.560)."""
+    coarse = drape_test(PRESETS["cotton"], edge=0.012)
+    fine = drape_test(PRESETS["cotton"], edge=0.008)
     assert fine["vertices"] > 1.8 * coarse["vertices"]
     assert abs(fine["drape_coefficient"] - coarse["drape_coefficient"]) <= 0.05
