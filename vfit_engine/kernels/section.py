@@ -251,6 +251,28 @@ def section_at(verts, tris, edges, tri_edges, edge_tris, h,
 
 
 @njit
+def _select_planes_edges(verts, edges, ys, cand):
+    """:func:`select_band_edges` for the band ``[min(ys), max(ys)]`` (``ys`` non-empty)."""
+    y_lo = ys[0]
+    y_hi = ys[0]
+    for i in range(1, ys.shape[0]):
+        y_lo = min(y_lo, ys[i])
+        y_hi = max(y_hi, ys[i])
+    return select_band_edges(verts, edges, y_lo, y_hi, cand)
+
+
+@njit
+def _x_range(pts, start, end):
+    """(min, max) of ``pts[start:end, 0]``."""
+    lo = np.inf
+    hi = -np.inf
+    for p in range(start, end):
+        lo = min(lo, pts[p, 0])
+        hi = max(hi, pts[p, 0])
+    return lo, hi
+
+
+@njit
 def scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x0,
                 cand, visited, cut, pts_out, loop_start_out, loop_closed_out,
                 order, hull, work, girth_out):
@@ -279,12 +301,7 @@ def scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x
     k = ys.shape[0]
     if k == 0:
         return
-    y_lo = ys[0]
-    y_hi = ys[0]
-    for i in range(1, k):
-        y_lo = min(y_lo, ys[i])
-        y_hi = max(y_hi, ys[i])
-    n_cand = select_band_edges(verts, edges, y_lo, y_hi, cand)
+    n_cand = _select_planes_edges(verts, edges, ys, cand)
     for i in range(k):
         h = ys[i]
         n_pts, n_loops = section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h,
@@ -309,12 +326,7 @@ def apart_planes(verts, tris, edges, tri_edges, edge_tris, ys,
     k = ys.shape[0]
     if k == 0:
         return
-    y_lo = ys[0]
-    y_hi = ys[0]
-    for i in range(1, k):
-        y_lo = min(y_lo, ys[i])
-        y_hi = max(y_hi, ys[i])
-    n_cand = select_band_edges(verts, edges, y_lo, y_hi, cand)
+    n_cand = _select_planes_edges(verts, edges, ys, cand)
     for i in range(k):
         n_pts, n_loops = section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, ys[i],
                                        visited, cut, pts_out, loop_start_out, loop_closed_out)
@@ -322,11 +334,7 @@ def apart_planes(verts, tris, edges, tri_edges, edge_tris, ys,
         t_lo = 0.0
         t_hi = 0.0
         for j in range(n_loops):
-            lo = np.inf
-            hi = -np.inf
-            for p in range(loop_start_out[j], loop_start_out[j + 1]):
-                lo = min(lo, pts_out[p, 0])
-                hi = max(hi, pts_out[p, 0])
+            lo, hi = _x_range(pts_out, loop_start_out[j], loop_start_out[j + 1])
             if lo <= 0.0 <= hi:
                 n_torso += 1
                 t_lo = lo
@@ -335,11 +343,7 @@ def apart_planes(verts, tris, edges, tri_edges, edge_tris, ys,
         right = False
         if n_torso == 1:
             for j in range(n_loops):
-                lo = np.inf
-                hi = -np.inf
-                for p in range(loop_start_out[j], loop_start_out[j + 1]):
-                    lo = min(lo, pts_out[p, 0])
-                    hi = max(hi, pts_out[p, 0])
+                lo, hi = _x_range(pts_out, loop_start_out[j], loop_start_out[j + 1])
                 left = left or hi < t_lo
                 right = right or lo > t_hi
         apart_out[i] = 1 if (left and right) else 0
