@@ -26,7 +26,28 @@ def _unit(d):
 
 
 def girth_gradient(sections, verts, h, x0=0.0):
-    """Gradient of the torso tape girth (convex hull perimeter) at the plane ``y = h``.
+    """Gradient of the torso tape girth (convex hull perimeter) at the plane ``y = h``: the Numba
+    kernel :func:`vfit_engine.kernels.girth_grad.girth_gradient` (one band selection and one section
+    walk; the per-girth cost of the morph's Jacobian). Arguments and result as
+    :func:`girth_gradient_reference`, its rows a rotation of the reference's (the hull starts at
+    another point).
+    """
+    from ..kernels.girth_grad import girth_gradient as kernel
+
+    verts = np.ascontiguousarray(verts, dtype=np.float64)
+    s = sections
+    rows = 2 * s.edge_count  # at most 2 per cut edge; np.empty touches only the pages written
+    idx, grad = np.empty(rows, dtype=np.int64), np.empty((rows, 3))
+    n = kernel(verts, s.tris, s.edges, s.tri_edges, s.edge_tris, float(h), float(x0), s._cand, s._visited,
+               s._cut, s._pts, s._loop_start, s._loop_closed, s._order, s._hull, idx, grad)
+    if n < 0:  # no loop, or several, across x0: the reference's tie-breaks (the kernel's docstring)
+        return girth_gradient_reference(sections, verts, h, x0)
+    return idx[:n].copy(), grad[:n].copy()
+
+
+def girth_gradient_reference(sections, verts, h, x0=0.0):
+    """Gradient of the torso tape girth (convex hull perimeter) at the plane ``y = h`` (NumPy and
+    SciPy's ConvexHull: the slow reference of :func:`girth_gradient`).
 
     Parameters
     ----------
