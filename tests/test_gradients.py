@@ -94,8 +94,8 @@ def _rows(idx, grad):
 def test_girth_gradient_kernel_matches_reference(measurer, gender):
     """The Numba kernel against the NumPy/SciPy reference, on seeded jittered bodies and planes over the
     torso (bust points to hips): the same rows, bit for bit (the order is a rotation: the hulls start at
-    different points)."""
-    from vfit_engine.body.gradients import girth_gradient, girth_gradient_reference
+    different points). Planes through the legs (no loop across x = 0) take the reference itself."""
+    from vfit_engine.body.gradients import girth_gradient, girth_gradient_dy, girth_gradient_reference
 
     rng = np.random.default_rng(11)
     base = measurer.model.default_verts(gender)[:13380]
@@ -107,6 +107,9 @@ def test_girth_gradient_kernel_matches_reference(measurer, gender):
             i1, g1 = girth_gradient_reference(measurer.sections, verts, y)
             i2, g2 = girth_gradient(measurer.sections, verts, y)
             assert len(i2) > 0 and _rows(i1, g1) == _rows(i2, g2)
+            # the girths beside the plane from the same call: bit for bit those of the scan kernel
+            _, _, g = girth_gradient_dy(measurer.sections, verts, y, 1e-6)
+            assert list(g) == list(measurer.sections.girths(verts, np.array([y - 1e-6, y + 1e-6])))
     # a plane through a vertex row (several cut edges give the same point) and one missing the body
     v = base[int(np.argmin(np.abs(base[:, 1] - bands["hips"]))), 1]
     for y in (v, 5.0):

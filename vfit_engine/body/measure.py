@@ -248,7 +248,7 @@ class Measurer:
         (``dg/dy`` by a central difference). The ``spline`` girth has no
         analytic gradient here (returns None).
         """
-        from .gradients import girth_gradient, ruler_gradient, stature_gradient
+        from .gradients import girth_gradient_dy, ruler_gradient, stature_gradient
 
         verts = np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64)
         if name == "height":
@@ -261,9 +261,8 @@ class Measurer:
         lo, hi, _ = band_limits(verts, self.rulers, (b_lo, b_hi))[name]
         y = lo + fraction * (hi - lo)
         anchors = () if name == "bust" else _band_anchors(name, fraction)
-        idx, grad = girth_gradient(self.sections, verts, y)
         eps = 1e-6  # local: g(y) has kinks where the plane passes vertex rows, often within 10 um
-        g_lo, g_hi = self.sections.girths(verts, np.array([y - eps, y + eps]))
+        idx, grad, (g_lo, g_hi) = girth_gradient_dy(self.sections, verts, y, eps)
         dg_dy = (g_hi - g_lo) / (2 * eps)
         parts_i, parts_g = [idx], [grad]
         if name == "bust" and points.size:

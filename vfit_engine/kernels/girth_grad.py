@@ -17,7 +17,7 @@ import numpy as np
 
 from vfit_engine._jit import njit
 from vfit_engine.kernels.girth import _cross, _heapsort_lex
-from vfit_engine.kernels.section import section_loops, select_band_edges
+from vfit_engine.kernels.section import _is_cut, _plane_girth, section_loops, select_band_edges
 
 
 @njit
@@ -71,21 +71,25 @@ def _unit_xz(x, z):
 
 
 @njit
-def girth_gradient(verts, tris, edges, tri_edges, edge_tris, h, x0, cand, visited, cut, pts_out,
-                   loop_start_out, loop_closed_out, order, hull, idx_out, grad_out):
-    """Gradient of the torso tape girth at ``y = h``.
+def girth_gradient(verts, tris, edges, tri_edges, edge_tris, h, x0, eps, cand, visited, cut, pts_out,
+                   loop_start_out, loop_closed_out, order, hull, work, idx_out, grad_out, girth_out):
+    """Gradient of the torso tape girth at ``y = h``, and the girths at ``h -+ eps`` (the band's own
+    motion: ``dg/dy`` by a central difference), all from one band selection.
 
     Parameters
     ----------
     verts, tris, edges, tri_edges, edge_tris : as :func:`vfit_engine.kernels.section.section_loops`
-    h, x0 : float, m
+    h, x0, eps : float, m
     cand, visited, cut, pts_out, loop_start_out, loop_closed_out : scratch as ``section_loops``
-    order, hull : scratch as :func:`vfit_engine.kernels.girth.hull_perimeter`
+    order, hull, work : scratch as :func:`vfit_engine.kernels.girth.loop_girth`
     idx_out : (>= 2 m,) int64
         Receives the vertex indices: the lower-index end ``a`` of each hull point's edge, then the
         upper ``b`` (m hull points).
     grad_out : (>= 2 m, 3) float64
         Receives d girth / d vertex for the rows of ``idx_out``, m per m.
+    girth_out : (2,) float64
+        Receives the hull girths at ``h - eps`` and ``h + eps`` (m), the same bit for bit as
+        :func:`vfit_engine.kernels.section.scan_girths` there (always written).
 
     Returns
     -------
@@ -93,7 +97,16 @@ def girth_gradient(verts, tris, edges, tri_edges, edge_tris, h, x0, cand, visite
         ``2 m`` rows written (0 when the plane misses the mesh or its torso loop has < 3 points); -1
         when not exactly one loop holds ``x0`` (nothing written: use the reference).
     """
-    n_cut = select_band_edges(verts, edges, h, h, cand)  # exactly the edges y = h cuts, ascending
+    n_cand = select_band_edges(verts, edges, h - eps, h + eps, cand)  # ascending
+    for i in range(2):  # a superset of each plane's cut edges, in order: scan_girths's loops and girths
+        girth_out[i] = _plane_girth(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h + (2 * i - 1) * eps,
+                                    0, 1, x0, visited, cut, pts_out, loop_start_out, loop_closed_out,
+                                    order, hull, work)
+    n_cut = 0  # the edges y = h cuts, ascending, moved to the front of cand
+    for c in range(n_cand):
+        if _is_cut(verts, edges, cand[c], h):
+            cand[n_cut] = cand[c]
+            n_cut += 1
     n_pts, n_loops = section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cut, h,
                                    visited, cut, pts_out, loop_start_out, loop_closed_out)
     if n_loops == 0:
