@@ -305,28 +305,48 @@ def scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x
 
 
 @njit
-def bucket_plane_edges(verts, edges, cand, n_cand, ys, plane_start, plane_edges):
+def _first_above(ys, y, guess):
+    """The first index ``i`` with ``ys[i] > y`` in the ascending ``ys`` (``np.searchsorted(ys, y, 'right')``),
+    walked from ``guess``: O(1) for the evenly spaced planes of a scan, correct for any."""
+    k = ys.shape[0]
+    i = min(max(guess, 0), k)
+    while i < k and ys[i] <= y:
+        i += 1
+    while i > 0 and ys[i - 1] > y:
+        i -= 1
+    return i
+
+
+@njit
+def bucket_plane_edges(verts, edges, cand, n_cand, ys, plane_start, plane_edges, first_out, last_out):
     """Per plane of the ascending ``ys``, the candidate edges it cuts, in ascending edge order.
 
     Edge ``e`` (end heights ``lo <= hi``) is cut by ``y = h`` iff ``lo < h <= hi``
     (:func:`_is_cut`), i.e. by the planes ``i0 <= i < i1`` with ``i0`` the first with
-    ``ys[i] > lo`` and ``i1`` the first with ``ys[i] > hi`` (binary searches). Plane ``i``'s
-    edges are ``plane_edges[plane_start[i]:plane_start[i + 1]]``; ``cand`` is walked in
-    order, so each list keeps ``cand``'s order and :func:`section_loops` given it finds the
-    same cut edges in the same order as given all of ``cand``.
+    ``ys[i] > lo`` and ``i1`` the first with ``ys[i] > hi``. Plane ``i``'s edges are
+    ``plane_edges[plane_start[i]:plane_start[i + 1]]``; ``cand`` is walked in order, so each
+    list keeps ``cand``'s order and :func:`section_loops` given it finds the same cut edges in
+    the same order as given all of ``cand``. ``first_out``, ``last_out`` (>= n_cand,) int64:
+    scratch for every edge's ``i0``, ``i1``.
 
     Returns the number of entries, or -1 when ``plane_edges`` is too short (nothing usable).
     """
     k = ys.shape[0]
     for i in range(k + 1):
         plane_start[i] = 0
+    # the index guess for evenly spaced planes; _first_above corrects it
+    inv = (k - 1) / (ys[k - 1] - ys[0]) if k > 1 and ys[k - 1] > ys[0] else 0.0
     # counts go to plane_start[i + 1]; a first pass sizes the lists
     for ii in range(n_cand):
         e = cand[ii]
         ya = verts[edges[e, 0], 1]
         yb = verts[edges[e, 1], 1]
-        i0 = np.searchsorted(ys, min(ya, yb), side="right")
-        i1 = np.searchsorted(ys, max(ya, yb), side="right")
+        lo = min(ya, yb)
+        hi = max(ya, yb)
+        i0 = _first_above(ys, lo, int((lo - ys[0]) * inv) + 1)
+        i1 = _first_above(ys, hi, int((hi - ys[0]) * inv) + 1)
+        first_out[ii] = i0
+        last_out[ii] = i1
         for i in range(i0, i1):
             plane_start[i + 1] += 1
     for i in range(k):
@@ -337,11 +357,7 @@ def bucket_plane_edges(verts, edges, cand, n_cand, ys, plane_start, plane_edges)
     # fill: plane_start[i] serves as plane i's write cursor, then is shifted back
     for ii in range(n_cand):
         e = cand[ii]
-        ya = verts[edges[e, 0], 1]
-        yb = verts[edges[e, 1], 1]
-        i0 = np.searchsorted(ys, min(ya, yb), side="right")
-        i1 = np.searchsorted(ys, max(ya, yb), side="right")
-        for i in range(i0, i1):
+        for i in range(first_out[ii], last_out[ii]):
             plane_edges[plane_start[i]] = e
             plane_start[i] += 1
     for i in range(k, 0, -1):
@@ -369,7 +385,9 @@ def scan_girths_sorted(verts, tris, edges, tri_edges, edge_tris, ys, method, sam
         if ys[i] < ys[i - 1]:
             ascending = False
     n_cand = select_band_edges(verts, edges, ys[0], ys[k - 1], cand) if ascending else 0
-    if not ascending or bucket_plane_edges(verts, edges, cand, n_cand, ys, plane_start, plane_edges) < 0:
+    # cut and order are free until the planes are cut: they hold the edges' plane ranges meanwhile
+    if not ascending or bucket_plane_edges(verts, edges, cand, n_cand, ys, plane_start, plane_edges,
+                                           cut, order) < 0:
         scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x0, cand, visited, cut,
                     pts_out, loop_start_out, loop_closed_out, order, hull, work, girth_out)
         return
