@@ -338,6 +338,34 @@ def test_body_girths_match_trimesh_and_scipy(body):
     check_body(*body)
 
 
+@pytest.mark.parametrize("method", [kg.METHOD_HULL, kg.METHOD_SPLINE])
+def test_scan_with_plane_edge_lists_equals_scan_girths(body, method):
+    """scan_girths_sorted (per-plane edge lists) against scan_girths (every band edge at every plane), on
+    seeded jittered bodies: bit-identical girths (evenly and unevenly spaced planes, repeated ones); unsorted
+    planes and too short lists take the fallback."""
+    from vfit_engine.kernels import section as ks
+
+    verts, tris = body
+    ms = MeshSections(tris, len(verts))
+    rng = np.random.default_rng(7)
+    scratch = (ms._cand, ms._visited, ms._cut, ms._pts, ms._loop_start, ms._loop_closed, ms._order, ms._hull,
+               ms._work)
+    for trial in range(3):
+        v = np.ascontiguousarray(verts + rng.normal(0.0, 3e-4, verts.shape) * (trial > 0))
+        lo = rng.uniform(0.8, 1.1)
+        for ys in (np.linspace(lo, lo + 0.3, 301), np.linspace(lo, lo + 0.01, 11), np.array([lo]),
+                   rng.uniform(lo, lo + 0.1, 20), np.sort(rng.uniform(lo - 0.2, lo + 0.1, 40)),
+                   np.array([lo, lo, lo + 0.05]), np.array([5.0, 6.0])):
+            topo = (v, ms.tris, ms.edges, ms.tri_edges, ms.edge_tris, ys, method, 8, 0.0)
+            ref = np.empty(ys.size)
+            ks.scan_girths(*topo, *scratch, ref)
+            for cap in (4 * ms.edge_count, 10):
+                out = np.empty(ys.size)
+                ks.scan_girths_sorted(*topo, *scratch, np.empty(ys.size + 1, np.int64), np.zeros(cap, np.int64),
+                                      out)
+                np.testing.assert_array_equal(out, ref)
+
+
 
 def test_apart_on_cylinders():
     """Three cylinders: apart; an arm moved onto the torso's x-range: not apart (the body: test_measure)."""

@@ -26,6 +26,10 @@ SPLINE_SAMPLES = 8
 #: Most planes one :meth:`MeshSections.scan` may cut (1 mm over 100 m).
 MAX_PLANES = 100_000
 
+#: :meth:`MeshSections.scan`'s per-plane edge lists hold up to this many entries per mesh edge (a body's
+#: 1 mm torso scans need under 1); longer lists fall back to testing every band edge at every plane.
+PLANE_EDGES_PER_EDGE = 4
+
 
 def rotation_to_y(n):
     """(3, 3) rotation taking the unit vector ``n`` to +Y (Rodrigues).
@@ -103,6 +107,7 @@ class MeshSections:
         self._order = np.zeros(n_edges, dtype=np.int64)
         self._hull = np.zeros(2 * n_edges + 1, dtype=np.int64)
         self._work = np.zeros((_kg.SPLINE_WORK_ROWS, n_edges + 1), dtype=np.float64)
+        self._plane_edges = None  # scan's per-plane edge lists, made at the first scan
 
     @property
     def edge_count(self):
@@ -205,10 +210,22 @@ class MeshSections:
         ys = np.ascontiguousarray(ys, dtype=np.float64).ravel()
         if verts.dtype != np.float64 or not verts.flags.c_contiguous or verts.shape != (self.n_verts, 3):
             verts = self._verts(verts)
+        # ascending planes take the per-plane edge lists (one band selection for planes far apart too);
+        # every plane's girth is the same bit for bit whatever the other planes
+        order = np.argsort(ys, kind="stable")
         out = np.empty(ys.size, dtype=np.float64)
-        _ks.scan_girths(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, ys, self._method(method),
-                        SPLINE_SAMPLES, float(x0), self._cand, self._visited, self._cut, self._pts,
-                        self._loop_start, self._loop_closed, self._order, self._hull, self._work, out)
+        out[order] = self._scan_sorted(verts, ys[order], self._method(method), float(x0))
+        return out
+
+    def _scan_sorted(self, verts, ys, code, x0):
+        """Girths at the ascending planes ``ys`` (:func:`vfit_engine.kernels.section.scan_girths_sorted`)."""
+        if self._plane_edges is None:  # per-plane edge lists: the edges of a 1 mm scan cut ~4 planes each
+            self._plane_edges = np.zeros(PLANE_EDGES_PER_EDGE * self.edge_count, dtype=np.int64)
+        out = np.empty(ys.size, dtype=np.float64)
+        _ks.scan_girths_sorted(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, ys, code,
+                               SPLINE_SAMPLES, x0, self._cand, self._visited, self._cut, self._pts,
+                               self._loop_start, self._loop_closed, self._order, self._hull, self._work,
+                               np.empty(ys.size + 1, dtype=np.int64), self._plane_edges, out)
         return out
 
     def scan(self, verts, y_lo, y_hi, step=0.001, method="hull", x0=0.0):
@@ -249,8 +266,4 @@ class MeshSections:
         # the tolerance keeps e.g. 0.2 / 0.001 from becoming 201 intervals by rounding
         count = max(int(np.ceil(span - 1e-9)), 1) + 1 if y_hi > y_lo else 1
         ys = np.linspace(y_lo, y_hi, count)
-        girths = np.empty(count, dtype=np.float64)
-        _ks.scan_girths(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, ys, code,
-                        SPLINE_SAMPLES, x0, self._cand, self._visited, self._cut, self._pts,
-                        self._loop_start, self._loop_closed, self._order, self._hull, self._work, girths)
-        return ys, girths
+        return ys, self._scan_sorted(verts, ys, code, x0)

@@ -26,7 +26,35 @@ def _unit(d):
 
 
 def girth_gradient(sections, verts, h, x0=0.0):
-    """Gradient of the torso tape girth (convex hull perimeter) at the plane ``y = h``.
+    """Gradient of the torso tape girth (convex hull perimeter) at the plane ``y = h``: the Numba
+    kernel :func:`vfit_engine.kernels.girth_grad.girth_gradient` (one band selection and one section
+    walk; the per-girth cost of the morph's Jacobian). Arguments and result as
+    :func:`girth_gradient_reference`, its rows a rotation of the reference's (the hull starts at
+    another point).
+    """
+    return girth_gradient_dy(sections, verts, h, 0.0, x0)[:2]
+
+
+def girth_gradient_dy(sections, verts, h, eps, x0=0.0):
+    """:func:`girth_gradient` and ``(g(h - eps), g(h + eps))``, the tape girths (m) beside the plane, from
+    the same kernel call (the morph's ``dg/dy``). Returns (idx, grad, (g_lo, g_hi))."""
+    from ..kernels.girth_grad import girth_gradient as kernel
+
+    verts = np.ascontiguousarray(verts, dtype=np.float64)
+    s = sections
+    rows = 2 * s.edge_count  # at most 2 per cut edge; np.empty touches only the pages written
+    idx, grad, g = np.empty(rows, dtype=np.int64), np.empty((rows, 3)), np.empty(2)
+    n = kernel(verts, s.tris, s.edges, s.tri_edges, s.edge_tris, float(h), float(x0), float(eps), s._cand,
+               s._visited, s._cut, s._pts, s._loop_start, s._loop_closed, s._order, s._hull, s._work, idx,
+               grad, g)
+    if n < 0:  # no loop, or several, across x0: the reference's tie-breaks (the kernel's docstring)
+        return (*girth_gradient_reference(sections, verts, h, x0), (g[0], g[1]))
+    return idx[:n].copy(), grad[:n].copy(), (g[0], g[1])
+
+
+def girth_gradient_reference(sections, verts, h, x0=0.0):
+    """Gradient of the torso tape girth (convex hull perimeter) at the plane ``y = h`` (NumPy and
+    SciPy's ConvexHull: the slow reference of :func:`girth_gradient`).
 
     Parameters
     ----------

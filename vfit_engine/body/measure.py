@@ -248,7 +248,7 @@ class Measurer:
         (``dg/dy`` by a central difference). The ``spline`` girth has no
         analytic gradient here (returns None).
         """
-        from .gradients import girth_gradient, ruler_gradient, stature_gradient
+        from .gradients import girth_gradient_dy, ruler_gradient, stature_gradient
 
         verts = np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64)
         if name == "height":
@@ -261,9 +261,8 @@ class Measurer:
         lo, hi, _ = band_limits(verts, self.rulers, (b_lo, b_hi))[name]
         y = lo + fraction * (hi - lo)
         anchors = () if name == "bust" else _band_anchors(name, fraction)
-        idx, grad = girth_gradient(self.sections, verts, y)
         eps = 1e-6  # local: g(y) has kinks where the plane passes vertex rows, often within 10 um
-        g_lo, g_hi = self.sections.girths(verts, np.array([y - eps, y + eps]))
+        idx, grad, (g_lo, g_hi) = girth_gradient_dy(self.sections, verts, y, eps)
         dg_dy = (g_hi - g_lo) / (2 * eps)
         parts_i, parts_g = [idx], [grad]
         if name == "bust" and points.size:
@@ -320,6 +319,15 @@ class Measurer:
         verts = np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64)
         values, used, cand, frac = {}, {}, {}, {}
         bands = None
+        fixed = {}  # name -> girths at its fixed planes: all names' planes cut in one kernel call
+        held = [n for n in names if planes is not None and n in planes and n in _PLANE_GIRTHS
+                and definition != "makehuman"]
+        if held:
+            bands = band_limits(verts, self.rulers, self.bust_band(verts)[:2])
+            ts = [np.atleast_1d(planes[n]) for n in held]
+            ys = np.concatenate([bands[n][0] + t * (bands[n][1] - bands[n][0]) for n, t in zip(held, ts)])
+            g = self.sections.girths(verts, ys, method=self._girth_method(definition))
+            fixed = dict(zip(held, np.split(g, np.cumsum([t.size for t in ts])[:-1])))
         for name in names:
             if name == "height":
                 values[name] = stature(verts)
@@ -332,8 +340,7 @@ class Measurer:
                 span = (hi - lo) or 1.0  # a one-plane band (the bust held under the armpits)
                 if planes is not None and name in planes:
                     # fixed planes, given as fractions of the band: they move with the band
-                    ts = np.atleast_1d(planes[name])
-                    g = self.sections.girths(verts, lo + ts * (hi - lo), method=self._girth_method(definition))
+                    ts, g = np.atleast_1d(planes[name]), fixed[name]
                     k = int(np.nanargmax(g) if mode == "max" else np.nanargmin(g))
                     values[name], used[name], frac[name] = g[k], lo + ts[k] * (hi - lo), float(ts[k])
                 else:

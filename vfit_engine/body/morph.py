@@ -280,7 +280,7 @@ class Morpher:
             start = self.start(g, definition)
             zero = np.zeros(len(self._channel_names))
             macro = self.macro(g, 0.5, 0.0)
-            verts = self.model.shape(macro.target_weights())
+            verts = self.model.shape(macro.target_weights(), first=N_BODY)
             verts[:N_BODY] = self._body(macro, zero)
             return MorphResult(verts, macro, 0.0, {n: 0.0 for n in self._channel_names}, start, {}, None,
                                self.start(g, definition), 0, dict(macro.target_weights()))
@@ -433,7 +433,7 @@ class Morpher:
         weights = {**macro.target_weights(), **ch.weights(up, down)}
         # the body vertices are exactly the array the last full measurement was taken on
         # (the sparse sum gives the helpers; it differs from the dense one by round-off)
-        verts = self.model.shape(weights)
+        verts = self.model.shape(weights, first=N_BODY)
         verts[:N_BODY] = self._body_split(macro, up, down)
         meas.values = {k: meas.values[k] for k in NAMES}
         channels = {n: float(v) for n, v in zip(ch.names, up - down)}

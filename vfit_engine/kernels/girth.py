@@ -91,6 +91,29 @@ def _cross(pts, o, a, b):
 
 
 @njit
+def hull_ccw(pts, order, hull):
+    """Andrew's monotone chain: writes the hull's point indices counter-clockwise into ``hull`` and returns
+    their count ``m``; ``hull[m]`` repeats ``hull[0]``; collinear and repeated points are left out."""
+    n = pts.shape[0]
+    _heapsort_lex(pts, n, order)
+    k = 0
+    for ii in range(n):
+        i = order[ii]
+        while k >= 2 and _cross(pts, hull[k - 2], hull[k - 1], i) <= 0.0:
+            k -= 1
+        hull[k] = i
+        k += 1
+    lower = k + 1
+    for ii in range(n - 2, -1, -1):
+        i = order[ii]
+        while k >= lower and _cross(pts, hull[k - 2], hull[k - 1], i) <= 0.0:
+            k -= 1
+        hull[k] = i
+        k += 1
+    return k - 1
+
+
+@njit
 def hull_perimeter(pts, order, hull):
     """Perimeter of the convex hull of 2-D points (a tape around them).
 
@@ -112,27 +135,12 @@ def hull_perimeter(pts, order, hull):
         Hull perimeter, m. Two distinct points give twice their distance (a
         degenerate hull), one or none give 0.
     """
-    n = pts.shape[0]
-    if n < 2:
+    if pts.shape[0] < 2:
         return 0.0
-    _heapsort_lex(pts, n, order)
-    k = 0
-    for ii in range(n):
-        i = order[ii]
-        while k >= 2 and _cross(pts, hull[k - 2], hull[k - 1], i) <= 0.0:
-            k -= 1
-        hull[k] = i
-        k += 1
-    lower = k + 1
-    for ii in range(n - 2, -1, -1):
-        i = order[ii]
-        while k >= lower and _cross(pts, hull[k - 2], hull[k - 1], i) <= 0.0:
-            k -= 1
-        hull[k] = i
-        k += 1
-    # hull[k - 1] repeats hull[0], so the k - 1 edges close the polygon
+    m = hull_ccw(pts, order, hull)
+    # hull[m] repeats hull[0], so the m edges close the polygon
     per = 0.0
-    for j in range(k - 1):
+    for j in range(m):
         a = hull[j]
         b = hull[j + 1]
         per += _dist(pts[b, 0], pts[b, 1], pts[a, 0], pts[a, 1])

@@ -273,6 +273,19 @@ def _x_range(pts, start, end):
 
 
 @njit
+def _plane_girth(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h, method, samples, x0,
+                 visited, cut, pts_out, loop_start_out, loop_closed_out, order, hull, work):
+    """Torso girth at ``y = h`` from the candidate edges ``cand[:n_cand]`` (NaN without a loop)."""
+    n_pts, n_loops = section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h,
+                                   visited, cut, pts_out, loop_start_out, loop_closed_out)
+    best = select_torso_loop(pts_out, loop_start_out, n_loops, x0)
+    if best < 0:
+        return np.nan
+    lp = pts_out[loop_start_out[best]:loop_start_out[best + 1]]
+    return loop_girth(lp, method, samples, order, hull, work)
+
+
+@njit
 def scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x0,
                 cand, visited, cut, pts_out, loop_start_out, loop_closed_out,
                 order, hull, work, girth_out):
@@ -303,15 +316,103 @@ def scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x
         return
     n_cand = _select_planes_edges(verts, edges, ys, cand)
     for i in range(k):
-        h = ys[i]
-        n_pts, n_loops = section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h,
-                                       visited, cut, pts_out, loop_start_out, loop_closed_out)
-        best = select_torso_loop(pts_out, loop_start_out, n_loops, x0)
-        if best < 0:
-            girth_out[i] = np.nan
-            continue
-        lp = pts_out[loop_start_out[best]:loop_start_out[best + 1]]
-        girth_out[i] = loop_girth(lp, method, samples, order, hull, work)
+        girth_out[i] = _plane_girth(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, ys[i], method,
+                                    samples, x0, visited, cut, pts_out, loop_start_out, loop_closed_out,
+                                    order, hull, work)
+
+
+@njit
+def _first_above(ys, y, guess):
+    """The first index ``i`` with ``ys[i] > y`` in the ascending ``ys`` (``np.searchsorted(ys, y, 'right')``),
+    walked from ``guess``: O(1) for the evenly spaced planes of a scan, correct for any."""
+    k = ys.shape[0]
+    i = min(max(guess, 0), k)
+    while i < k and ys[i] <= y:
+        i += 1
+    while i > 0 and ys[i - 1] > y:
+        i -= 1
+    return i
+
+
+@njit
+def bucket_plane_edges(verts, edges, cand, n_cand, ys, plane_start, plane_edges, first_out, last_out):
+    """Per plane of the ascending ``ys``, the candidate edges it cuts, in ascending edge order.
+
+    Edge ``e`` (end heights ``lo <= hi``) is cut by ``y = h`` iff ``lo < h <= hi``
+    (:func:`_is_cut`), i.e. by the planes ``i0 <= i < i1`` with ``i0`` the first with
+    ``ys[i] > lo`` and ``i1`` the first with ``ys[i] > hi``. Plane ``i``'s edges are
+    ``plane_edges[plane_start[i]:plane_start[i + 1]]``; ``cand`` is walked in order, so each
+    list keeps ``cand``'s order and :func:`section_loops` given it finds the same cut edges in
+    the same order as given all of ``cand``. ``first_out``, ``last_out`` (>= n_cand,) int64:
+    scratch for every edge's ``i0``, ``i1``.
+
+    Returns the number of entries, or -1 when ``plane_edges`` is too short (nothing usable).
+    """
+    k = ys.shape[0]
+    for i in range(k + 1):
+        plane_start[i] = 0
+    # the index guess for evenly spaced planes; _first_above corrects it
+    inv = (k - 1) / (ys[k - 1] - ys[0]) if k > 1 and ys[k - 1] > ys[0] else 0.0
+    # counts go to plane_start[i + 1]; a first pass sizes the lists
+    for ii in range(n_cand):
+        e = cand[ii]
+        ya = verts[edges[e, 0], 1]
+        yb = verts[edges[e, 1], 1]
+        lo = min(ya, yb)
+        hi = max(ya, yb)
+        i0 = _first_above(ys, lo, int((lo - ys[0]) * inv) + 1)
+        i1 = _first_above(ys, hi, int((hi - ys[0]) * inv) + 1)
+        first_out[ii] = i0
+        last_out[ii] = i1
+        for i in range(i0, i1):
+            plane_start[i + 1] += 1
+    for i in range(k):
+        plane_start[i + 1] += plane_start[i]
+    total = plane_start[k]
+    if total > plane_edges.shape[0]:
+        return -1
+    # fill: plane_start[i] serves as plane i's write cursor, then is shifted back
+    for ii in range(n_cand):
+        e = cand[ii]
+        for i in range(first_out[ii], last_out[ii]):
+            plane_edges[plane_start[i]] = e
+            plane_start[i] += 1
+    for i in range(k, 0, -1):
+        plane_start[i] = plane_start[i - 1]
+    plane_start[0] = 0
+    return total
+
+
+@njit
+def scan_girths_sorted(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x0,
+                       cand, visited, cut, pts_out, loop_start_out, loop_closed_out,
+                       order, hull, work, plane_start, plane_edges, girth_out):
+    """:func:`scan_girths` with the same results, faster on many ascending planes: instead of testing
+    every edge of the band at every plane, each plane tests only the edges it cuts
+    (:func:`bucket_plane_edges`). Unsorted ``ys``, or lists longer than ``plane_edges``, fall back to
+    :func:`scan_girths`.
+
+    Extra parameters: ``plane_start`` (>= k + 1,) int64 and ``plane_edges`` (any length) int64, scratch.
+    """
+    k = ys.shape[0]
+    if k == 0:
+        return
+    ascending = True
+    for i in range(1, k):
+        if ys[i] < ys[i - 1]:
+            ascending = False
+    n_cand = select_band_edges(verts, edges, ys[0], ys[k - 1], cand) if ascending else 0
+    # cut and order are free until the planes are cut: they hold the edges' plane ranges meanwhile
+    if not ascending or bucket_plane_edges(verts, edges, cand, n_cand, ys, plane_start, plane_edges,
+                                           cut, order) < 0:
+        scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x0, cand, visited, cut,
+                    pts_out, loop_start_out, loop_closed_out, order, hull, work, girth_out)
+        return
+    for i in range(k):
+        s = plane_start[i]
+        girth_out[i] = _plane_girth(verts, tris, edges, tri_edges, edge_tris, plane_edges[s:],
+                                    plane_start[i + 1] - s, ys[i], method, samples, x0, visited, cut,
+                                    pts_out, loop_start_out, loop_closed_out, order, hull, work)
 
 
 @njit
