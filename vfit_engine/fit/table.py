@@ -160,7 +160,8 @@ class FitTable:
             centre, half = self._torso_centre(m.planes[name])
             label = "chest" if name == "bust" and not female else name
             self.regions.append((label, "", _Plane(centre, (0.0, 1.0, 0.0)), 1.0, float(m.values[name]), half))
-            self._above[label] = self._below_armpits(m.planes[name])
+            # only a bust/chest plane reaches the armholes (lower, hanging forearms can touch a heavy waist)
+            self._above[label] = self._below_armpits(m.planes[name]) if name == "bust" else BAND
         # the body's sections round the openings, built once for every drape on this body
         self.loops = BodyLoops(self.body_verts, model.body_tris)
         for name, side, plane, reach in _limb_planes(model, self.body_verts):
