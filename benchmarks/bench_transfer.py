@@ -39,7 +39,7 @@ def _targets(morpher, measurer, gender, notes):
             res = morpher.solve({name: want}, gender=gender)
             label = f"{name}{dcm:+d}"
         except InputError:
-            lo, hi = morpher.reachable(name, morpher.solve({name: start[name]}, gender=gender))
+            lo, hi = morpher.reachable(name, {name: want}, gender)
             near = float(np.clip(want, lo + 0.002, hi - 0.002))
             res = morpher.solve({name: near}, gender=gender)
             label = f"{name}{(near - start[name]) * 100:+.1f}*"
