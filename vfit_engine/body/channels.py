@@ -50,7 +50,6 @@ class ChannelSet:
     names : list of str; n : channel count
     updown : (2n, 3 * 13380) float64 C-contiguous - the ``-incr`` rows, then the ``-decr`` rows (m)
     incr3, decr3 : (n, 13380, 3) views of the two halves
-    n_secondary : how many of the channels after the primary ones are regularised as secondary
     incr_max : (n,) upper bound of each ``-incr`` weight (:data:`INCR_MAX`)
     """
 
