@@ -28,7 +28,7 @@ demo: install
 	@echo "look at the draped skirt: out/drape/preview.png"
 
 test: install
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadscope  # two processes; a module's tests stay together (its fixtures are built once)
 
 bench: install
 	$(BIN)/python benchmarks/bench_girth.py
