@@ -28,8 +28,12 @@ class DrapeSettings:
     fps : float, 1/s
         Frames per simulated second (a frame is the unit of output and of the settle test).
     max_frames : int
-        Frames simulated at most (10 s: cloth the body stretches far beyond what the fabric gives comes
-        to rest slowly, in 4-5 s); not settled by then means not converged (exit 3).
+        Frames simulated at most (20 s; not settled by then means not converged, exit 3). Most drapes settle
+        in 1-2 s, but some come to rest only slowly: cloth the body stretches far beyond what the fabric
+        gives (4-5 s), and free cloth that hangs still for a while and then slides slowly into other folds
+        (the demo skirt in jersey on a 160 cm / 75 kg woman: its hem still at frame 200 moves off and
+        settles at frame 802). That slide is slow because the air damping that stops a falling garment
+        quickly also slows it (at 5/s it settles at frame 584, at 3/s at 276).
     solver : VerletSettings
         Substeps, iterations, damping and the cloth's constraint bands
         (:class:`vfit_engine.sim.solver_verlet.VerletSettings`).
@@ -67,7 +71,7 @@ class DrapeSettings:
     """
 
     fps: float = 60.0
-    max_frames: int = 600
+    max_frames: int = 1200
     solver: VerletSettings = field(default_factory=_solver)
     contact: ContactSettings = field(default_factory=_contact)
     surface_spacing: float = 0.015

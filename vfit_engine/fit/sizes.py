@@ -60,7 +60,7 @@ RULE = ("the smallest size with no tight verdict at a key region (chest/bust, wa
 STATUSES = ("settled", "not settled", "diverged", "failed")
 #: Statuses whose fit table counts.
 JUDGED = ("settled", "not settled")
-#: Frame limit of each size's drape (5 s simulated; ``vfit drape``'s is 600). The sizes that settle do so
+#: Frame limit of each size's drape (5 s simulated; ``vfit drape``'s is 1200). The sizes that settle do so
 #: in 70-160 frames on the shared outfits; one the body stretches far beyond its size creeps on for
 #: the whole 600 frames (30 s of the run) and its verdicts at frame 150 already equal those at 600
 #: (XS of male_casualsuit02 on a chest of 90 cm): it is judged on its last frame, marked not settled.
@@ -323,7 +323,7 @@ def try_sizes(garment_path, customer, sizes=None, workers=None, progress=None, u
         Of the garment file.
     material : str
     max_frames : int or None
-        Frame limit of each drape (:data:`SIZE_MAX_FRAMES`; None: the drape's default, 600).
+        Frame limit of each drape (:data:`SIZE_MAX_FRAMES`; None: the drape's default, 1200).
     model : BodyModel or None
 
     Returns
