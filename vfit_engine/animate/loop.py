@@ -6,14 +6,14 @@
 
 1. **poses**: the body and the garment's pins in every animation frame, the clip blended in from the A pose
    over ``blend_s`` (:class:`~vfit_engine.animate.motion.Poser`);
-2. **collider**: the exact body surface near the garment (the triangles within ``near`` of the draped
-   cloth), moving (:class:`vfit_engine.collide.moving_body.MovingBodyCollider`): one grid per frame, the
-   surface where it is at every substep; or shapes fitted to the body that follow its bones
-   (``fitted``: spheres along the bones, :func:`fitted_spheres`);
+2. **collider**: the exact surface of the body parts the garment comes near in any frame
+   (:mod:`vfit_engine.animate.colliders`), moving (:class:`vfit_engine.collide.moving_body.MovingBodyCollider`):
+   one grid per frame, the surface where it is at every substep; or spheres fitted to the body that follow
+   its bones (:class:`~vfit_engine.animate.colliders.BoneSpheres`);
 3. **the cloth**: the drape's solver (:func:`vfit_engine.drape.loop.build_solver`: the same constraints,
    sweeps and openings) from the settled drape; each frame is ``substeps`` substeps of the drape's step, the
    body moved between them (``body_every``) and the pins moved with it;
-4. **figures** of every frame (:func:`frame_figures`): the cloth surface against the body (the drape's
+4. **figures** of every frame (:func:`frame_figures`): the cloth surface against the whole body (the drape's
    lattice of samples), yarn strain against the garment as given, contact pressure; and the time each part
    took.
 """
@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vfit_engine.animate.colliders import (  # noqa: F401  (re-exported: the loop's names before the split)
+    DETAIL_PARTS, BoneSpheres, MovingBody, near_triangles, reach_triangles)
 from vfit_engine.errors import InputError
 
 #: Colliders of an animation: the exact body near the garment, or spheres fitted to the body that follow its
@@ -56,7 +58,8 @@ class AnimateSettings:
         sides and, unchecked, runs away (tens of m/s). A walking foot moves ~5 m/s; the report counts the
         vertices slowed in each frame.
     near : float, m
-        The exact collider holds the body parts within this of the draped garment (:func:`near_triangles`).
+        The exact collider holds the body parts that come within this of the skin the draped garment covers
+        in some frame (:func:`~vfit_engine.animate.colliders.reach_triangles`).
     surface_spacing : float or None, m
         Spacing of the contact points over the cloth's triangles while the body moves (None: the drape's,
         15 mm): a moving body pushes the cloth between them more than a still one rests on it (the suit's
@@ -147,33 +150,6 @@ def pose_frames(poser, clip, settings):
     return np.stack(bodies), np.stack(pins), np.stack(mats), np.array(travel)
 
 
-#: Body parts (:data:`vfit_engine.body.segment.PARTS`) of many small triangles: only their triangles near the
-#: garment collide; of the other parts, any the garment comes near collides whole.
-DETAIL_PARTS = ("head", "hand.L", "hand.R", "foot.L", "foot.R")
-
-
-def near_triangles(body_verts, tris, cloth, near, parts=None):
-    """(t,) bool: the triangles the garment at ``cloth`` collides with: those with a corner within ``near`` (m)
-    of a cloth vertex and, given the body ``parts`` ((v,) int, :func:`vfit_engine.body.segment.skin_parts`),
-    every triangle of a part (not one of :data:`DETAIL_PARTS`) that has such a triangle.
-
-    A part is taken whole because a moving part comes to the cloth where it was far at rest (a thigh rising
-    under a skirt as its wearer sits down); where a surface is cut open its inside and outside are not told
-    apart, and cloth there would be pushed the wrong way. The detail parts (head, hands, feet: 70 % of the
-    triangles) keep only their near triangles, cut where they are ``near`` from the cloth."""
-    from scipy.spatial import cKDTree
-
-    d, _ = cKDTree(cloth).query(body_verts, distance_upper_bound=near)
-    close = np.isfinite(d)[tris].any(axis=1)
-    if parts is None:
-        return close
-    from vfit_engine.body.segment import PARTS
-
-    part = np.asarray(parts)[tris[:, 0]]
-    whole = np.setdiff1d(np.unique(part[close]), [PARTS.index(p) for p in DETAIL_PARTS])
-    return close | np.isin(part, whole)
-
-
 def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=None, on_frame=None):
     """Simulate the garment of ``setup`` (settled at ``rest_pos``) on its body moving through ``clip``.
 
@@ -216,7 +192,7 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     t1 = time.perf_counter()
     bodies, pin_pos, mats, travel = pose_frames(poser, clip, st)
     timings["posing"] = time.perf_counter() - t1
-    body = _Body(setup, model, bodies, mats, rest_pos, st, dst)
+    body = MovingBody(setup, model, bodies, mats, rest_pos, st, dst)
     moving = dataclasses.replace(setup, collider=body.collider) if st.collider == "mesh" else \
         dataclasses.replace(setup, collider_kind="spheres", spheres=body.spheres.at(0, 0.0))
     if st.surface_spacing is not None:
@@ -248,9 +224,7 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
             raise exc
         np.copyto(last_good, state.pos)
         t0 = time.perf_counter()
-        if body.spheres is not None:  # the exact body is still what each frame is judged against
-            body.advance(k)
-            body.collider.at(1.0)
+        body.judge(k)  # the whole exact body at the frame's end, whatever the cloth met
         figures.append(frame_figures(setup, body, state.pos))
         figures[-1]["slowed_vertices"] = slowed
         timings["figures"] += time.perf_counter() - t0
@@ -328,10 +302,11 @@ def frame_figures(setup, body, pos):
     from vfit_engine.fit.maps import CONTACT_MM, contact_pressure
 
     mesh = setup.garment.mesh
-    body.metrics_collider.settle_bounds()  # exact centre distances now: points clear of the body are dismissed
-    out = surface_penetration(body.metrics_collider, pos, mesh.triangles())
+    judge = body.whole
+    judge.settle_bounds()  # exact centre distances now: points clear of the body are dismissed
+    out = surface_penetration(judge, pos, mesh.triangles())
     strain = yarn_strain(mesh, pos)
-    d, _, normal, tri = body.metrics_collider.query(pos, max_out=CONTACT_MM / 1000.0, max_in=np.inf)
+    d, _, normal, tri = judge.query(pos, max_out=CONTACT_MM / 1000.0, max_in=np.inf)
     contact = (d <= CONTACT_MM / 1000.0) & (tri >= 0)
     mat = setup.material
     pressure = contact_pressure(mesh, pos, mat.stretch_stiffness, mat.areal_density, normal, contact)
@@ -342,123 +317,6 @@ def frame_figures(setup, body, pos):
                max_step_mm=1000.0 * float(step.max()) if step.size else 0.0,
                share_moving=float(np.mean(step > body.settle_step)) if step.size else 0.0)
     return out
-
-
-class _Body:
-    """The moving body as the loop needs it: the exact collider (moved every substep, or only at each frame's
-    end to judge it when the cloth meets spheres) and the sphere colliders along the bones."""
-
-    def __init__(self, setup, model, bodies, mats, rest_pos, st, dst):
-        from vfit_engine.collide.moving_body import MovingBodyCollider
-
-        self.bodies, self.st = bodies, st
-        self.tris = model.body_tris
-        self.time = 0.0
-        self.last_pos = None
-        self.settle_step = dst.settle_step
-        lo, hi = bodies.reshape(-1, 3).min(axis=0), bodies.reshape(-1, 3).max(axis=0)
-        active = near_triangles(bodies[0], self.tris, rest_pos, st.near, setup.body_parts)
-        self.collider = MovingBodyCollider(bodies[0], self.tris, box=(lo, hi), active=active)
-        self.metrics_collider = self.collider
-        self.spheres = None if st.collider == "mesh" else BoneSpheres.fitted(setup.body, model, mats, dst,
-                                                                                st.collider)
-
-    def advance(self, k):
-        self.collider.advance(self.bodies[k])
-
-    def at(self, k, s):
-        """Put the body at time ``s`` of frame ``k``: (how far it moved at most (m), sphere colliders or None)."""
-        self.time = (k - 1 + s) / self.st.fps
-        if self.spheres is not None:
-            return 0.0, self.spheres.at(k, s)
-        self.collider.at(s)
-        return self.collider.motion_bound, None
-
-    def describe(self):
-        c = self.collider
-        out = dict(kind=self.st.collider, near_m=self.st.near, active_triangles=int(c.active.sum()),
-                   triangles=int(len(c.active)), cell_m=c.cell, margin_m=c.margin, piece_m=c.piece,
-                   grid_cells=int(c.ncells), pairs_last_frame=int(c.grid.cell_tris.size),
-                   side_queries=int(c.queried_sides), seconds={k: round(v, 4) for k, v in c.timings.items()})
-        if self.spheres is not None:
-            out["spheres"] = int(len(self.spheres.radii))
-        return out
-
-
-class BoneSpheres:
-    """Sphere colliders fitted to the body at rest that follow its bones: each centre moves rigidly with its
-    bone's skinning matrix, and between two frames along the straight line.
-
-    ``kind`` ``"bone-spheres"``: spheres along the bones (:func:`vfit_engine.collide.bone_spheres.
-    fit_bone_spheres`), each on its bone; ``"spheres"``: the greedy medial cover
-    (:func:`vfit_engine.collide.auto_spheres.fit_spheres`), each following the bone that carries most of the
-    skin nearest its centre.
-
-    Parameters
-    ----------
-    centres : (s, 3) float64, m;  radii : (s,) float64, m
-        The spheres at rest (radii with their skin).
-    bone : (s,) int64
-        The bone each follows (``model.bone_names`` order).
-    mats : (f + 1, b, 3, 4) float64
-        The bones' skinning matrices of every frame (:func:`pose_frames`).
-    """
-
-    def __init__(self, centres, radii, bone, mats):
-        self.radii = np.asarray(radii, dtype=np.float64)
-        m = mats[:, np.asarray(bone, dtype=np.int64)]  # (f + 1, s, 3, 4)
-        self.centres = np.einsum("fsij,sj->fsi", m[:, :, :, :3], centres) + m[:, :, :, 3]
-        self._out = np.empty((len(self.radii), 4))
-        self._out[:, 3] = self.radii
-
-    @classmethod
-    def fitted(cls, body, model, mats, dst, kind="bone-spheres"):
-        """The spheres ``kind`` (class docstring) fitted to ``body`` (at rest, with its helper vertices) with the
-        drape's ``spheres_per_bone`` and ``sphere_skin`` (``dst``)."""
-        if kind == "spheres":
-            centres, radii, bone = cls._medial(body, model)
-        else:
-            centres, radii, bone = cls._along_bones(body, model, dst)
-        return cls(centres, np.asarray(radii) * (1.0 + dst.sphere_skin), bone, mats)
-
-    @staticmethod
-    def _along_bones(body, model, dst):
-        from vfit_engine.body.segment import bone_positions, seed_bones
-        from vfit_engine.collide.bone_spheres import MIN_BONE_LENGTH, fit_bone_spheres
-
-        if not body.has_helpers:
-            raise InputError("the bone-spheres collider needs the body's helper vertices (its skeleton): build the "
-                             "body from measurements instead of reading it from a file")
-        pos = bone_positions(model, body.verts)
-        names = [b for _part, bones in seed_bones(model).items() for b in bones
-                 if np.linalg.norm(np.subtract(pos[b][1], pos[b][0])) >= MIN_BONE_LENGTH]
-        centres, radii, bone_of = fit_bone_spheres(body.surface, model.body_tris, [pos[n] for n in names],
-                                                   per_bone=dst.spheres_per_bone)
-        index = {n: i for i, n in enumerate(model.bone_names)}
-        return centres, radii, np.array([index[names[i]] for i in bone_of], dtype=np.int64)
-
-    @staticmethod
-    def _medial(body, model):
-        from scipy import sparse
-        from scipy.spatial import cKDTree
-
-        from vfit_engine.collide.auto_spheres import fit_spheres
-        from vfit_engine.collide.body_mesh import MeshCollider
-
-        surface = body.surface
-        centres, radii = fit_spheres(surface, model.body_tris, MeshCollider(surface, model.body_tris))
-        bone, vertex, weight = model.skin
-        keep = vertex < len(surface)
-        w = sparse.csr_matrix((weight[keep], (vertex[keep], bone[keep])), shape=(len(surface), len(model.bone_names)))
-        _, near = cKDTree(surface).query(centres, k=8)  # the skin round the sphere
-        carry = np.asarray(sum(w[near[:, j]] for j in range(near.shape[1])).todense())
-        return centres, radii, np.argmax(carry, axis=1)
-
-    def at(self, k, s):
-        """(s, 4) the spheres (centre, radius; m) at time ``s`` of frame ``k``."""
-        c0 = self.centres[max(k - 1, 0)]
-        self._out[:, :3] = c0 + s * (self.centres[k] - c0)
-        return self._out.copy()
 
 
 def animate_garment(setup, clip, model, settings=None, drape_settings=None, on_drape_frame=None, on_frame=None):
