@@ -31,7 +31,9 @@ their derivative is the derivative at the extremal plane, so the inner solve
 keeps each girth's planes fixed (as fractions of its band, so they move with
 the band; every near-extremal plane seen so far, so the solve cannot cycle
 between valleys) and the outer loop re-searches the bands until the full
-measurement meets every target. The bust is taken at the bust points' plane,
+measurement meets every target (a solve ending a few millimetres short goes
+again with a residual per watched plane: ``morph_planes.py``). The bust is
+taken at the bust points' plane,
 which moves with them. The inner solve is a trust-region Gauss-Newton
 (``gauss_newton.py``) with an exact Jacobian for the channels: the body is
 linear in its channel weights, so ``dg/dx_j = grad_v g . D_j`` with the
@@ -46,13 +48,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels.blend import blend, project
+from .channels import CHANNELS, GIRTHS, HEAVY, SECONDARY, ChannelSet  # noqa: F401  (re-exported)
 from .gauss_newton import gauss_newton as _gauss_newton
 from .measure import NAMES, Measurement, Measurer, stature
 from .model import N_BODY, BodyModel, Macro, gender_value
-from .population import VARIABLES, PopulationModel
-
-from .channels import CHANNELS, GIRTHS, HEAVY, SECONDARY, ChannelSet  # noqa: F401  (re-exported)
-
 from .morph_planes import SLACK_UNIT, GirthRows, Problem, add_planes, outer_loop
 from .morph_result import MorphResult, Plan
 from .morph_settings import (  # noqa: F401  (tests and scripts read them from morph)
@@ -60,6 +59,7 @@ from .morph_settings import (  # noqa: F401  (tests and scripts read them from m
     REACH_SOFT, REACH_WEIGHT, REG_PRIMARY, REG_SECONDARY, SEEN_PLANES, SOFT_TOL, SOFT_WEIGHT, TOLERANCE_M,
     TOLERANCE_MASS, UNDERBUST_SD,
 )
+from .population import VARIABLES, PopulationModel
 
 
 def build_sliders(b: float) -> tuple[float, float]:
@@ -260,10 +260,8 @@ class Morpher:
 
         ``push`` = (name, goal, weight) replaces one goal (the reach search). Returns (x, measurement,
         outer iterations); ``x`` = [-incr weights, -decr weights, height slider, build] of the base channels,
-        or with ``heavy`` (or an ``x0`` of that size) of the base and HEAVY ones. The outer loop (band
-        searches, ``morph_planes.outer_loop``) stops early where a target stays more than 1 mm away without
-        closing in. ``each_plane``: a residual per watched plane (``morph_planes.py``).
-        """
+        or with ``heavy`` (or an ``x0`` of that size) of the base and HEAVY ones. ``each_plane``: a residual
+        per watched plane. The outer loop: ``morph_planes.outer_loop``."""
         m = self.measurer
         n_ch = self._sets[1 if heavy else 0].n if x0 is None else (len(x0) - 2) // 2
         rows, mass, w_mass = self._goals(plan, push, soft, each_plane and definition != "makehuman")
@@ -292,9 +290,12 @@ class Morpher:
             return r, J
 
         base_hard = np.concatenate([rows.wres == 1.0, [w_mass == 1.0], [True, True]])
+
+        def slack0(p, planes):  # the slacks start where the planes are (none without rows per plane)
+            return rows.slack0(residual(p, planes)[1], planes) if rows.each_plane else np.zeros(0)
+
         problem = Problem(residual, None if definition == "spline" else lambda q, planes: residual(q, planes, True)[1],
-                          lambda planes: np.concatenate([base_hard, rows.hard(planes)]),
-                          lambda p, planes: rows.slack0(residual(p, planes)[1], planes))
+                          lambda planes: np.concatenate([base_hard, rows.hard(planes)]), slack0)
         # planes seen so far per girth (fractions of its band): when the extremum jumps between two
         # valleys the inner solve must watch both, or the outer loop would cycle between them. The
         # average body's serve to start: bands move with the body, so fractions stay near
