@@ -33,11 +33,11 @@ the band; every near-extremal plane seen so far, so the solve cannot cycle
 between valleys) and the outer loop re-searches the bands until the full
 measurement meets every target (a solve ending a few millimetres short goes
 again with a residual per watched plane: ``morph_planes.py``). The bust is
-taken at the bust points' plane,
-which moves with them. The inner solve is a trust-region Gauss-Newton
-(``gauss_newton.py``) with an exact Jacobian for the channels: the body is
-linear in its channel weights, so ``dg/dx_j = grad_v g . D_j`` with the
-gradients of ``gradients.py``; the two macro sliders by forward differences.
+taken at the bust points' plane, which moves with them. The inner solve is a
+trust-region Gauss-Newton (``gauss_newton.py``) with an exact Jacobian for the
+channels: the body is linear in its channel weights, so ``dg/dx_j = grad_v g .
+D_j`` with the gradients of ``gradients.py``; the two macro sliders by forward
+differences.
 """
 from __future__ import annotations
 
