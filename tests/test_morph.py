@@ -112,3 +112,42 @@ def test_result_keeps_helpers_shaped(morpher, body_model):
 def test_letter_size_extremes(morpher, gender, bust, waist, hips):
     targets = {"bust": bust / 100, "waist": waist / 100, "hips": hips / 100}
     _assert_met(morpher.solve(targets, gender=gender), targets)
+
+
+def test_a_row_per_watched_plane():
+    """morph_planes.GirthRows: a smallest girth (waist) with target T at two watched planes, one 1 mm over
+    and one 0.5 mm under: its own row 0 (the smallest is not over T), a hinge row per plane, 0 and -0.5
+    (in mm); with slacks the rows are ``e - slack`` and every plane's gradient is taken. A largest girth
+    (hips) mirrored: a plane over T is its violation."""
+    from vfit_engine.body.measure import Measurement
+    from vfit_engine.body.morph_planes import SLACK_UNIT, GirthRows
+
+    t_waist, t_hips = 0.80, 1.00
+    planes = {"waist": np.array([0.2, 0.6]), "hips": np.array([0.3, 0.7])}
+    meas = Measurement("iso", {"waist": t_waist - 0.5 * MM, "hips": t_hips + 0.25 * MM},
+                       fractions={"waist": 0.6, "hips": 0.3},
+                       at_planes={"waist": np.array([t_waist + 1 * MM, t_waist - 0.5 * MM]),
+                                  "hips": np.array([t_hips + 0.25 * MM, t_hips - 2 * MM])})
+    rows = GirthRows(("waist", "hips"), np.array([t_waist, t_hips]), np.ones(2), each_plane=True)
+    r, hinge, grads, signs = rows.rows(meas, planes)
+    np.testing.assert_allclose(r, [0.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(hinge, [0.0, -0.5, 0.25, 0.0], atol=1e-9)
+    assert sorted(g[0] for g in grads) == [3, 4]  # only the planes past their target pull
+    np.testing.assert_allclose(signs, [-1, -1, 1, 1])
+    assert rows.hard(planes).tolist() == [True] * 4
+    # all planes on the allowed side: the extremal row pulls the smallest down to T (and the largest up)
+    meas.at_planes = {"waist": np.array([t_waist + 1 * MM, t_waist + 0.5 * MM]),
+                      "hips": np.array([t_hips - 0.25 * MM, t_hips - 2 * MM])}
+    r, hinge, _, _ = rows.rows(meas, planes)
+    np.testing.assert_allclose(r, [0.5, -0.25], atol=1e-9)
+    np.testing.assert_allclose(hinge, 0.0, atol=1e-9)
+    slack = rows.slack0(meas, planes)
+    np.testing.assert_allclose(slack * SLACK_UNIT, [1.0, 0.5, 0.25, 2.0], atol=1e-9)
+    _, hinge, grads, _ = rows.rows(meas, planes, slack)
+    np.testing.assert_allclose(hinge, 0.0, atol=1e-9)
+    assert sum(g[0] >= 2 for g in grads) == 4
+    # without rows per plane: one row per girth at its extremal plane, as before
+    one = GirthRows(("waist", "hips"), np.array([t_waist, t_hips]), np.ones(2), each_plane=False)
+    r, hinge, grads, _ = one.rows(meas, planes)
+    np.testing.assert_allclose(r, [-0.5, 0.25], atol=1e-9)
+    assert hinge.size == 0 and [g[2] for g in grads] == [0.6, 0.3]

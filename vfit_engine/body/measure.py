@@ -94,6 +94,8 @@ class Measurement:
     candidates: dict = field(default_factory=dict)
     #: name -> the plane used, as a fraction of its band
     fractions: dict = field(default_factory=dict)
+    #: name -> girths (m) at each of the fixed planes asked for (``planes=``), in their order
+    at_planes: dict = field(default_factory=dict)
 
     def cm(self) -> dict:
         """Values in centimetres, rounded to 0.01 mm."""
@@ -350,4 +352,5 @@ class Measurer:
         if definition == "makehuman" and planes is None:
             for key, r in self.rulers.items():
                 values.setdefault(key, ruler_length(verts, r["vertex_indices"]))
-        return Measurement(definition, values, used, self.mass(verts) if mass else float("nan"), cand, frac)
+        return Measurement(definition, values, used, self.mass(verts) if mass else float("nan"), cand, frac,
+                           fixed)

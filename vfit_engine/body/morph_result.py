@@ -7,6 +7,7 @@ import numpy as np
 
 from .measure import Measurement
 from .model import Macro
+from .morph_settings import TOLERANCE_M, TOLERANCE_MASS
 
 
 @dataclass
@@ -46,3 +47,15 @@ class Plan:
     estimated: dict
     warnings: list
     start: Measurement
+
+    def missed(self, meas: Measurement) -> bool:
+        """Does ``meas`` miss a given value (girth or height, or the mass)?"""
+        if "mass" in self.hard and abs(meas.mass_kg / self.mass - 1.0) > TOLERANCE_MASS:
+            return True
+        return any(abs(meas.values[k] - self.goals[k]) > TOLERANCE_M for k in self.hard if k != "mass")
+
+    def worst(self, meas: Measurement) -> float:
+        """The largest miss (m) of a given girth or height, the mass's counted as TOLERANCE_M per
+        TOLERANCE_MASS."""
+        mass = abs(meas.mass_kg / self.mass - 1.0) / TOLERANCE_MASS * TOLERANCE_M if "mass" in self.hard else 0.0
+        return max([mass] + [abs(meas.values[k] - self.goals[k]) for k in self.hard if k != "mass"])

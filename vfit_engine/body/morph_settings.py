@@ -20,6 +20,9 @@ SOFT_WEIGHT = 0.01
 SOFT_TOL = 0.05
 #: weight of the one goal a reach search pulls far away: it gives way to every target (by ~1e-5 of its pull)
 REACH_WEIGHT = 0.003
+#: a solve that ends missing a target by less than this (m) tries again with a residual per watched plane
+#: (``morph_planes.py``): a miss of millimetres is the extremum jumping between planes
+EACH_PLANE_MISS = 5e-3
 #: an inner solve that misses a target by more than this (m) at its own planes ends the outer loop
 EARLY_EXIT = 1e-3
 #: band planes a girth's inner solve watches: the latest this many seen near the extremum (a body
