@@ -191,6 +191,12 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     poser = Poser(model, setup.body.verts, pin_points=rest_pos[pins] if pins.size else None, method=st.skinning)
     t1 = time.perf_counter()
     bodies, pin_pos, mats, travel = pose_frames(poser, clip, st)
+    if setup.body_parts is not None:  # hands laid on the body rest on its skin (skinning lets them sink in)
+        from vfit_engine.body.self_contact import ArmContact
+
+        arms = ArmContact(bodies[0], model.body_tris, setup.body_parts)
+        for k in range(len(bodies)):
+            bodies[k] = arms.apply(bodies[k])
     timings["posing"] = time.perf_counter() - t1
     body = MovingBody(setup, model, bodies, mats, rest_pos, st, dst)
     moving = dataclasses.replace(setup, collider=body.collider) if st.collider == "mesh" else \
