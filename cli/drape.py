@@ -85,7 +85,7 @@ def body_targets(body_path, girths, height, weight):
 @click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--frames", type=click.IntRange(1, 100000), default=None,
-              help="Most frames to simulate (60 per simulated second) [default: 1200, 20 s].")
+              help="Most frames to simulate (60 per simulated second; 20 s) [default: 1200].")
 @click.option("--every", type=click.IntRange(0, 100000), default=10, show_default=True,
               help="Write frame_NNNN every K frames, frame_0000 being the start (0: none).")
 @click.option("--format", "fmt", type=click.Choice(["obj", "ply", "glb"]), default="obj", show_default=True,
