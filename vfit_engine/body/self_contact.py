@@ -69,9 +69,9 @@ class ArmContact:
         out = verts
         normals = None
         for moved, weight, other, ring in self.sides:
+            tree = cKDTree(out[other])  # the rest of the body does not move while this arm does
             for _ in range(PASSES):
                 p = out[moved]
-                tree = cKDTree(out[other])
                 d, j = tree.query(p, distance_upper_bound=REACH)
                 near = np.isfinite(d) & (weight >= LIFTS)
                 if not near.any():
@@ -85,7 +85,10 @@ class ArmContact:
                     break
                 low = need > 0.0
                 direction = (up[low] * need[low, None]).sum(axis=0)
-                direction /= np.linalg.norm(direction)
+                length = np.linalg.norm(direction)
+                if length < 1e-12:  # pressed from opposite sides at once (a hand between the thighs): left as is
+                    break
+                direction /= length
                 if out is verts:
                     out = verts.copy()
                 out[moved] += np.minimum(need.max(), REACH) * weight[:, None] * direction
