@@ -68,6 +68,7 @@ def pose(ctx, body_path, pose_path, frame, speed, gif_path, skinning, output, js
     from vfit_engine.body.model import BodyModel
     from vfit_engine.body.pose import pose_body, skinning_for
     from vfit_engine.body.resolve import resolve_body
+    from vfit_engine.body.self_contact import lift_hands
     from vfit_engine.io.bvh import read_bvh
 
     model = BodyModel.load()
@@ -78,7 +79,7 @@ def pose(ctx, body_path, pose_path, frame, speed, gif_path, skinning, output, js
     body = resolve_body(model, body_path, targets, weight, gender, definition)
     skin = skinning_for(model, len(body.verts))
     posed = pose_body(model, body.verts, motion, frame, method=skinning, skinning=skin)
-    write_body(output, model, posed.verts,
+    write_body(output, model, lift_hands(model, body.verts, posed.verts),
                header=[f"vfit pose: {os.path.basename(pose_path)} frame {frame}, {skinning}; metres, Y up"])
     if gif_path:
         _gif(gif_path, model, body.verts, motion, skinning, skin)
@@ -106,9 +107,10 @@ def _gif(path, model, verts, motion, method, skin):
     from vfit_engine.animation import MAX_FRAMES, write_gif
     from vfit_engine.body.model import N_BODY
     from vfit_engine.body.pose import body_joints, pose_body
+    from vfit_engine.body.self_contact import lift_hands
 
     pick = np.unique(np.linspace(0, len(motion.frames) - 1, min(len(motion.frames), MAX_FRAMES)).round().astype(int))
     joints = body_joints(model, verts)  # the body's joints, the same in every frame
-    frames = [pose_body(model, verts, motion, int(k), method=method, skinning=skin, joints=joints).verts[:N_BODY]
-              for k in pick]
+    frames = [lift_hands(model, verts, pose_body(model, verts, motion, int(k), method=method, skinning=skin,
+                                                  joints=joints).verts)[:N_BODY] for k in pick]
     write_gif(path, None, None, frames, model.body_tris, fps=min(1.0 / motion.frame_time, 50.0), view="side")

@@ -1,4 +1,6 @@
 """A hand laid on the body rests on its skin (vfit_engine.body.self_contact)."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -56,3 +58,23 @@ def test_a_hand_sunk_into_the_thigh_is_lifted_onto_its_skin(rest):
     assert 0.003 <= lifted.min() <= 0.010
     arm = np.isin(parts, [PARTS.index(p) for p in ("hand.L", "lowerarm.L")])
     assert np.array_equal(out[~arm], sunk[~arm])
+
+
+POSES = Path(__file__).resolve().parents[2] / "shared" / "assets" / "poses"
+
+
+@pytest.mark.skipif(not POSES.is_dir(), reason="../shared/assets/poses (MakeHuman poses) absent")
+def test_sit01_s_hand_rests_on_the_knee(body_model, rest):
+    """MakeHuman's sit01 lays the left hand on the raised knee: skinned, it sinks into the thigh; lifted
+    (``vfit pose``, ``vfit animate``), it rests above the skin and the right hand, on the floor, is not moved."""
+    from vfit_engine.body.pose import pose_body
+    from vfit_engine.body.self_contact import lift_hands
+    from vfit_engine.io.bvh import read_bvh
+
+    verts, tris, parts = rest
+    posed = pose_body(body_model, verts, read_bvh(POSES / "sit01.bvh")).verts
+    assert _gap(posed, tris, parts).min() < -0.005
+    lifted = lift_hands(body_model, verts, posed)
+    assert 0.002 <= _gap(lifted, tris, parts).min() <= 0.010
+    right = np.isin(parts, [PARTS.index("hand.R"), PARTS.index("lowerarm.R")])
+    assert np.array_equal(lifted[right], posed[right])

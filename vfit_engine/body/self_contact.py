@@ -95,6 +95,19 @@ class ArmContact:
         return out
 
 
+def lift_hands(model, rest, posed):
+    """``posed`` (a body of ``model``'s topology posed from ``rest``, with or without helper vertices) with its
+    hands resting on the skin (:class:`ArmContact`); the helper vertices are left as skinned."""
+    from vfit_engine.body.model import N_BODY
+    from vfit_engine.body.segment import skin_parts
+
+    body = ArmContact(np.asarray(rest, dtype=np.float64)[:N_BODY], model.body_tris, skin_parts(model)).apply(
+        np.ascontiguousarray(posed[:N_BODY], dtype=np.float64))
+    if body is not posed and len(posed) > N_BODY:
+        body = np.concatenate([body, posed[N_BODY:]])
+    return body
+
+
 def _rings(tris, keep):
     """(v, r) int64: the triangles round each vertex whose corners are all ``keep`` ((v,) bool), padded by
     repeating the first (a vertex on none of them gets triangle 0; it is never a nearest ``keep`` vertex)."""
