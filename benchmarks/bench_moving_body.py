@@ -29,8 +29,8 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "assets" / "garments"
 
 def _near(body, tris, garment_name, near):
     """The triangles the garment placed on ``body`` (its file's own place) collides with, as an animation
-    takes them (:func:`vfit_engine.animate.loop.near_triangles`): cheap, no drape needed for which are near."""
-    from vfit_engine.animate.loop import near_triangles
+    takes them (:func:`vfit_engine.animate.colliders.near_triangles`): cheap, no drape needed for which are near."""
+    from vfit_engine.animate.colliders import near_triangles
     from vfit_engine.body.model import BodyModel
     from vfit_engine.body.segment import skin_parts
     from vfit_engine.garment.garment import load_garment

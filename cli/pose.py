@@ -79,7 +79,7 @@ def pose(ctx, body_path, pose_path, frame, speed, gif_path, skinning, output, js
     body = resolve_body(model, body_path, targets, weight, gender, definition)
     skin = skinning_for(model, len(body.verts))
     posed = pose_body(model, body.verts, motion, frame, method=skinning, skinning=skin)
-    write_body(output, model, lift_hands(model, body.verts, posed.verts),
+    write_body(output, model, lift_hands(model, body.verts)(posed.verts),
                header=[f"vfit pose: {os.path.basename(pose_path)} frame {frame}, {skinning}; metres, Y up"])
     if gif_path:
         _gif(gif_path, model, body.verts, motion, skinning, skin)
@@ -111,6 +111,7 @@ def _gif(path, model, verts, motion, method, skin):
 
     pick = np.unique(np.linspace(0, len(motion.frames) - 1, min(len(motion.frames), MAX_FRAMES)).round().astype(int))
     joints = body_joints(model, verts)  # the body's joints, the same in every frame
-    frames = [lift_hands(model, verts, pose_body(model, verts, motion, int(k), method=method, skinning=skin,
-                                                  joints=joints).verts)[:N_BODY] for k in pick]
+    lift = lift_hands(model, verts)
+    frames = [lift(pose_body(model, verts, motion, int(k), method=method, skinning=skin, joints=joints).verts)[:N_BODY]
+              for k in pick]
     write_gif(path, None, None, frames, model.body_tris, fps=min(1.0 / motion.frame_time, 50.0), view="side")

@@ -268,7 +268,8 @@ def test_fitted_spheres_follow_their_bones(body_model, walk):
     """A sphere on a bone moves as the skin that bone alone carries: centres put on vertices carried wholly by a
     foot, a forearm and the head land, in a walking frame and between frames, where the skinned body
     puts those vertices (a rigid motion; DQS and LBS agree there)."""
-    from vfit_engine.animate.loop import AnimateSettings, BoneSpheres, pose_frames
+    from vfit_engine.animate.colliders import BoneSpheres
+    from vfit_engine.animate.loop import AnimateSettings, pose_frames
     from vfit_engine.animate.motion import Poser
     from vfit_engine.body.resolve import default_body
 

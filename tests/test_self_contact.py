@@ -74,7 +74,7 @@ def test_sit01_s_hand_rests_on_the_knee(body_model, rest):
     verts, tris, parts = rest
     posed = pose_body(body_model, verts, read_bvh(POSES / "sit01.bvh")).verts
     assert _gap(posed, tris, parts).min() < -0.005
-    lifted = lift_hands(body_model, verts, posed)
+    lifted = lift_hands(body_model, verts)(posed)
     assert 0.002 <= _gap(lifted, tris, parts).min() <= 0.010
     right = np.isin(parts, [PARTS.index("hand.R"), PARTS.index("lowerarm.R")])
     assert np.array_equal(lifted[right], posed[right])

@@ -26,8 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vfit_engine.animate.colliders import (  # noqa: F401  (re-exported: the loop's names before the split)
-    DETAIL_PARTS, BoneSpheres, MovingBody, near_triangles, reach_triangles)
+from vfit_engine.animate.colliders import MovingBody
 from vfit_engine.errors import InputError
 
 #: Colliders of an animation: the exact body near the garment, or spheres fitted to the body that follow its

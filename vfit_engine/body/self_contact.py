@@ -95,17 +95,20 @@ class ArmContact:
         return out
 
 
-def lift_hands(model, rest, posed):
-    """``posed`` (a body of ``model``'s topology posed from ``rest``, with or without helper vertices) with its
-    hands resting on the skin (:class:`ArmContact`); the helper vertices are left as skinned."""
+def lift_hands(model, rest):
+    """A function of ``posed`` (a body of ``model``'s topology posed from ``rest``, with or without helper
+    vertices) that returns it with its hands resting on the skin (:class:`ArmContact`, set up once for all
+    the poses of ``rest``); the helper vertices are left as skinned."""
     from vfit_engine.body.model import N_BODY
     from vfit_engine.body.segment import skin_parts
 
-    body = ArmContact(np.asarray(rest, dtype=np.float64)[:N_BODY], model.body_tris, skin_parts(model)).apply(
-        np.ascontiguousarray(posed[:N_BODY], dtype=np.float64))
-    if body is not posed and len(posed) > N_BODY:
-        body = np.concatenate([body, posed[N_BODY:]])
-    return body
+    arms = ArmContact(np.asarray(rest, dtype=np.float64)[:N_BODY], model.body_tris, skin_parts(model))
+
+    def lift(posed):
+        body = arms.apply(np.ascontiguousarray(posed[:N_BODY], dtype=np.float64))
+        return np.concatenate([body, posed[N_BODY:]]) if len(posed) > N_BODY else body
+
+    return lift
 
 
 def _rings(tris, keep):
