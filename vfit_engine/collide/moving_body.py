@@ -58,7 +58,8 @@ class MovingBodyCollider:
         The triangles the cloth collides with (None: all): e.g. those within some centimetres of a garment
         (:func:`vfit_engine.animate.colliders.near_triangles`); the others cost nothing per frame. The side of
         the body empty cells are on is taken from the whole surface at the first pose, so the interior of a
-        part cut off where the active triangles end stays inside (see :func:`~vfit_engine.kernels.collide_mesh_sweep.carry_signs`).
+        part cut off where the active triangles end stays inside
+        (see :func:`~vfit_engine.kernels.collide_mesh_sweep.carry_signs`).
     cell, margin, piece : float, m, or None
         Grid cell edge (None: the mean edge of the active triangles), the exact band of a cell (None:
         :data:`MARGIN_PER_CELL` cells) and the longest move of a vertex within one piece of the binning
