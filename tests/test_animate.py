@@ -1,35 +1,13 @@
 """Animated fitting (vfit_engine.animate, ``vfit animate``): clips and their blending, CMU joint names and rest
 poses, pins that follow the body, the animated GLB's frames, and one small real animation through the CLI."""
 import json
-import struct
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import glb_reader
 from vfit_cli.main import cli
-
-
-def _glb(path):
-    """(json document, BIN bytes) of a GLB file, read independently of vfit's writer."""
-    data = open(path, "rb").read()
-    magic, version, total = struct.unpack_from("<4sII", data, 0)
-    assert magic == b"glTF" and version == 2 and total == len(data)
-    n, kind = struct.unpack_from("<I4s", data, 12)
-    assert kind == b"JSON"
-    doc = json.loads(data[20:20 + n])
-    m, kind = struct.unpack_from("<I4s", data, 20 + n)
-    assert kind == b"BIN\0"
-    return doc, data[28 + n:28 + n + m]
-
-
-def _accessor(doc, binary, k):
-    acc = doc["accessors"][k]
-    view = doc["bufferViews"][acc["bufferView"]]
-    width = {"SCALAR": 1, "VEC3": 3}[acc["type"]]
-    dtype = np.float32 if acc["componentType"] == 5126 else np.uint32
-    a = np.frombuffer(binary, dtype=dtype, count=acc["count"] * width, offset=view["byteOffset"])
-    return a.reshape(acc["count"], width) if width > 1 else a
 
 
 @pytest.fixture(scope="module")
@@ -160,7 +138,7 @@ def test_pins_follow_the_body(body_model, walk):
 
 def test_animation_glb_has_every_frame(body_model, tmp_path):
     """The GLB's animation: one morph target per frame after the first, a STEP weight track of the frame
-    count, and base + target k = frame k exactly (float32)."""
+    count, and base + target k = frame k (int16 targets: within 0.5/32767 m)."""
     from vfit_engine.io.gltf import write_animation_glb
     from vfit_engine.io.mesh import mesh_from_faces
 
@@ -168,20 +146,18 @@ def test_animation_glb_has_every_frame(body_model, tmp_path):
     rng = np.random.default_rng(0)
     frames = quad.verts + rng.normal(0, 0.1, (7, 4, 3))
     write_animation_glb(tmp_path / "a.glb", [("garment", quad), ("other", quad)], [frames, frames[::-1]], fps=30)
-    doc, binary = _glb(tmp_path / "a.glb")
+    doc, binary = glb_reader.parse_glb(tmp_path / "a.glb")
     (anim,) = doc["animations"]
     assert len(anim["channels"]) == 2 and {c["target"]["path"] for c in anim["channels"]} == {"weights"}
     for sampler in anim["samplers"]:
-        times = _accessor(doc, binary, sampler["input"])
+        times = glb_reader.accessor(doc, binary, sampler["input"])
         assert len(times) == 7 and sampler["interpolation"] == "STEP"
         np.testing.assert_allclose(times, np.arange(7) / 30.0, rtol=1e-6)
-        w = _accessor(doc, binary, sampler["output"]).reshape(7, 6)
+        w = glb_reader.accessor(doc, binary, sampler["output"]).reshape(7, 6)
         np.testing.assert_array_equal(w, np.eye(7, 6, -1))  # frame k: target k - 1 at weight 1
-    prim = doc["meshes"][0]["primitives"][0]
-    base = _accessor(doc, binary, prim["attributes"]["POSITION"])
-    assert len(prim["targets"]) == 6
-    for k, target in enumerate(prim["targets"], start=1):
-        np.testing.assert_allclose(base + _accessor(doc, binary, target["POSITION"]), frames[k], atol=1e-6)
+    assert len(doc["meshes"][0]["primitives"][0]["targets"]) == 6
+    pos, _ = glb_reader.morph_frames(doc, binary, "garment")
+    np.testing.assert_allclose(pos, frames, atol=0.5 / 32767 + 1e-6)
 
 
 # -- one small animation through the command line ----------------------------------------------------------
@@ -219,8 +195,8 @@ def test_small_animation_outputs_and_report(small_run, body_model):
     for row in rep["frame_figures"][1:]:
         bad = row["surface_max_depth_mm"] > 2.0 or row["surface_inside_percent"] > 1.0 or row["p99_strain"] > 0.08
         assert bad == (row["frame"] in failed)
-    doc, binary = _glb(out / "animation.glb")
-    times = _accessor(doc, binary, doc["animations"][0]["samplers"][0]["input"])
+    doc, binary = glb_reader.parse_glb(out / "animation.glb")
+    times = glb_reader.accessor(doc, binary, doc["animations"][0]["samplers"][0]["input"])
     assert len(times) == 4  # frames 0..3
     body0, body3 = _obj_verts(out / "body_0000.obj"), _obj_verts(out / "body_0003.obj")
     assert len(body0) == 13380 and np.linalg.norm(body3 - body0, axis=1).max() > 0.01  # the body moved

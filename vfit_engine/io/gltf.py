@@ -24,6 +24,7 @@ Conventions the caller should know:
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import struct
 from pathlib import Path
@@ -33,9 +34,12 @@ import numpy as np
 
 from vfit_engine.errors import InputError
 from vfit_engine.geometry import vertex_normals
+from vfit_engine.io import gltf_quantize
 from vfit_engine.io.atomic import atomic_write
 
 _FLOAT, _UINT = 5126, 5125  # glTF componentType codes
+_COMPONENT = {np.dtype(np.float32): _FLOAT, np.dtype(np.uint32): _UINT, np.dtype(np.int16): 5122,
+              np.dtype(np.int8): 5120}
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 _TRIANGLES = 4
 #: Default material colours (sRGB): skin for the body, a light grey-blue fabric for anything else.
@@ -116,10 +120,20 @@ def write_scene_glb(path, parts):
 def write_animation_glb(path, parts, frames, fps):
     """Write ``parts`` animated through ``frames`` as one binary glTF 2.0 file, atomically.
 
-    Each part's mesh carries one morph target per frame after the first (the positions' and normals'
-    change from frame 0, at the glTF vertices of the split seams), and an animation sets the weight of
-    frame ``k``'s target to 1 from time ``k / fps`` on (STEP interpolation), the others to 0: Blender (shape
-    keys) and three.js (morph targets) play it frame by frame, exactly the positions given.
+    Each part's mesh carries one morph target per frame after the first (the positions' and normals' change
+    from frame 0, at the glTF vertices of the split seams), and an animation sets the weight of frame ``k``'s
+    target to 1 from time ``k / fps`` on (STEP interpolation), the others to 0: Blender (shape keys) and
+    three.js (morph targets) play it frame by frame, the positions given to within 0.015 mm.
+
+    The targets are stored compactly (:mod:`vfit_engine.io.gltf_quantize`), so the file lists
+    ``KHR_mesh_quantization`` in ``extensionsUsed`` and ``extensionsRequired``: a viewer must support it
+    (checked: Blender 3.4's importer, three.js r187's GLTFLoader, the Khronos glTF validator). A POSITION delta
+    is a normalized int16 (1/32767 m steps, error <= 0.015 mm) unless some component of that target exceeds
+    1 m, which stays float32; a NORMAL delta is a normalized int8 (under 0.4 degrees) unless a component
+    exceeds 1 (only a normal turned past 60 degrees can), which stays float32. Identical arrays are written
+    once and shared (a walk's repeating body frames, the parts' common weight track). The base mesh (frame 0)
+    is float32, as :func:`write_scene_glb` writes it. The 60-frame walk of male_casualsuit02 (BENCHMARKS.md,
+    "Animated fitting") went from 25.3 MB (all float32) to 11.1 MB.
 
     Parameters
     ----------
@@ -157,15 +171,7 @@ def write_animation_glb(path, parts, frames, fps):
         if pos.shape[1:] != (part.mesh.n_verts, 3) or not np.all(np.isfinite(pos)):
             raise InputError(f"glb part {part.name!r}: frames must be finite, ({count}, {part.mesh.n_verts}, 3)")
         acc = {key: buf.add(arr, _ARRAY_BUFFER, bounds=key == "POSITION") for key, arr in attributes.items()}
-        base_n = attributes["NORMAL"]
-        targets = []
-        for k in range(1, count):
-            nk = vertex_normals(pos[k], part.mesh.face_verts, part.mesh.face_offsets)
-            nk[np.linalg.norm(nk, axis=1) == 0] = (0.0, 1.0, 0.0)
-            targets.append({"POSITION": buf.add(np.ascontiguousarray((pos[k] - pos[0])[src], dtype=np.float32),
-                                                _ARRAY_BUFFER, bounds=True),
-                            "NORMAL": buf.add(np.ascontiguousarray(nk[src], dtype=np.float32) - base_n,
-                                              _ARRAY_BUFFER)})
+        targets = [_morph_target(buf, part.mesh, p, src, attributes) for p in pos[1:]]
         prim = {"attributes": acc, "indices": buf.add(indices, _ELEMENT_ARRAY_BUFFER), "material": i,
                 "mode": _TRIANGLES}
         mesh = {"name": part.name, "primitives": [prim]}
@@ -179,12 +185,28 @@ def write_animation_glb(path, parts, frames, fps):
         doc["materials"].append(_material(part, "COLOR_0" in attributes))
     if channels:
         doc["animations"] = [{"name": "animation", "samplers": samplers, "channels": channels}]
+    if buf.quantized:  # the integer targets mean nothing to a reader without the extension: required
+        doc["extensionsUsed"] = doc["extensionsRequired"] = [gltf_quantize.EXTENSION]
     doc.update(buf.json_fields())
     data = _glb_bytes(doc, buf.data())
     path = Path(path)
     with atomic_write(path, "wb") as f:
         f.write(data)
     return path
+
+
+def _morph_target(buf, mesh, pos, src, base):
+    """One frame's morph target ``{"POSITION": accessor, "NORMAL": accessor}`` against the base attributes.
+
+    ``pos`` (n, 3) m are the frame's positions at the source vertices, ``src`` the source vertex of every glTF
+    vertex, ``base`` the part's float32 base attributes as written.
+    """
+    normals = vertex_normals(pos, mesh.face_verts, mesh.face_offsets)
+    normals[np.linalg.norm(normals, axis=1) == 0] = (0.0, 1.0, 0.0)  # as the base: unit normals everywhere
+    dpos, pos_q = gltf_quantize.position_delta(pos[src], base["POSITION"])
+    dnrm, nrm_q = gltf_quantize.normal_delta(normals[src], base["NORMAL"])
+    return {"POSITION": buf.add(dpos, _ARRAY_BUFFER, bounds=True, normalized=pos_q),
+            "NORMAL": buf.add(dnrm, _ARRAY_BUFFER, normalized=nrm_q)}
 
 
 def _part_arrays(part, with_src=False):
@@ -297,28 +319,49 @@ def _material(part, has_colors):
 
 
 class _Buffer:
-    """The BIN chunk under construction: one bufferView and one accessor per array."""
+    """The BIN chunk under construction: one bufferView and one accessor per distinct array.
+
+    An array identical to one added before (same bytes, type and use) gets the earlier accessor back: a walk
+    repeats its cycle, so the body's later frames are often byte for byte an earlier frame's target, and every
+    part's weight track is the same; sharing them is exact.
+    """
 
     def __init__(self):
         self.chunks, self.views, self.accessors, self.length = [], [], [], 0
+        self.quantized = False  # any normalized integer attribute written: KHR_mesh_quantization required
+        self._seen = {}
 
-    def add(self, arr, target, bounds=False):
-        """Append a float32 (N, c) or uint32 (N,) array; return its accessor index."""
-        raw = arr.tobytes()
+    def add(self, arr, target, bounds=False, normalized=False):
+        """Append a float32, int16 or int8 (N, c) or a uint32 (N,) array; return its accessor index.
+
+        ``normalized`` marks integer data read as ``c / max`` (KHR_mesh_quantization); ``bounds`` writes
+        min/max, in the stored component values as the spec asks (integers for integer data).
+        """
+        raw, stride = _element_bytes(arr, target)
+        key = (hashlib.sha256(raw).digest(), arr.dtype.str, arr.shape, target, bounds, normalized)
+        if key in self._seen:
+            return self._seen[key]
         view = {"buffer": 0, "byteOffset": self.length, "byteLength": len(raw)}
+        if stride:
+            view["byteStride"] = stride
         if target is not None:  # animation data: a buffer view without a GPU target
             view["target"] = target
         self.views.append(view)
-        # every component here is 4 bytes, so views (and accessors at offset 0) stay 4-aligned
-        self.chunks.append(raw)
-        self.length += len(raw)
+        # each view starts on a 4-byte boundary (glTF's alignment for every component type): pad the chunk
+        pad = b"\0" * (-len(raw) % 4)
+        self.chunks.append(raw + pad)
+        self.length += len(raw) + len(pad)
         kind = "SCALAR" if arr.ndim == 1 else f"VEC{arr.shape[1]}"
         acc = {"bufferView": len(self.views) - 1, "byteOffset": 0, "count": int(arr.shape[0]), "type": kind,
-               "componentType": _UINT if arr.dtype == np.uint32 else _FLOAT}
-        if bounds:  # the spec requires min/max on POSITION, exactly the float32 values written
-            acc["min"] = [float(x) for x in np.atleast_1d(arr.min(axis=0))]
-            acc["max"] = [float(x) for x in np.atleast_1d(arr.max(axis=0))]
+               "componentType": _COMPONENT[arr.dtype]}
+        if normalized:
+            acc["normalized"] = True
+            self.quantized = True
+        if bounds:  # the spec requires min/max on POSITION, exactly the values written
+            acc["min"] = [x.item() for x in np.atleast_1d(arr.min(axis=0))]
+            acc["max"] = [x.item() for x in np.atleast_1d(arr.max(axis=0))]
         self.accessors.append(acc)
+        self._seen[key] = len(self.accessors) - 1
         return len(self.accessors) - 1
 
     def data(self):
@@ -326,6 +369,21 @@ class _Buffer:
 
     def json_fields(self):
         return {"buffers": [{"byteLength": self.length}], "bufferViews": self.views, "accessors": self.accessors}
+
+
+def _element_bytes(arr, target):
+    """(bytes, byteStride or 0) of an array, each vertex-attribute element padded to a multiple of 4 bytes.
+
+    glTF requires every element of a vertex attribute to start on a 4-byte boundary: an int16 VEC3 (6 bytes)
+    is written as 8 with ``byteStride`` 8, an int8 VEC3 as 4. Float32 and uint32 data need no padding.
+    """
+    arr = np.ascontiguousarray(arr)
+    size = arr.itemsize * (arr.shape[1] if arr.ndim == 2 else 1)
+    if target != _ARRAY_BUFFER or size % 4 == 0:
+        return arr.tobytes(), 0
+    padded = np.zeros((arr.shape[0], -(-size // 4) * 4 // arr.itemsize), dtype=arr.dtype)
+    padded[:, :arr.shape[1]] = arr
+    return padded.tobytes(), padded.shape[1] * arr.itemsize
 
 
 def _glb_bytes(doc, bin_data):
