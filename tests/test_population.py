@@ -58,3 +58,36 @@ def test_percentiles_warnings_and_refusals():
     # (+2.5 SD: waist and hips correlate 0.93 in the fitted model, so +3 SD with a median waist is refused)
     odd = pop.assess({"waist": pop.quantile("waist", 0.0), "hips": pop.quantile("hips", 2.5)})
     assert odd.refusals() == [] and "with the other measurements given" in " ".join(odd.warnings())
+
+
+def _ansur_sample(sex):
+    """The ANSUR II sample of ``sex`` as ``scripts/fit_population.py`` keeps it (the same row checks)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "fit_population.py"
+    spec = importlib.util.spec_from_file_location("fit_population", path)
+    fit = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fit)
+    rows, _ = fit.load_ansur(fit.ANSUR[sex], sex)
+    return rows
+
+
+def test_womens_neck_is_the_womens_regression():
+    """The women's neck follows ANSUR II women (it once borrowed the men's regression, which put a woman of
+    the sample's mean stature and mass at a 37.3 cm neck against their 33.1): at the sample's (geometric) mean
+    stature and mass the model gives the sample's mean neck within 1 cm, and a woman of 165 cm / 65 kg gets a
+    neck within one SD of the sample's mean (ANSUR II women: mean 33 cm, SD about 2 cm), well below the men's
+    model at the same stature and mass."""
+    women = _ansur_sample("female")
+    neck = women["neckcircumference"] / 1000.0  # mm -> m
+    assert len(neck) == 115 and 0.325 < neck.mean() < 0.337 and 0.015 < neck.std(ddof=1) < 0.025
+    height = float(np.exp(np.log(women["stature"] / 1000.0).mean()))
+    mass = float(np.exp(np.log(women["weightkg"]).mean()))
+    med, _ = PopulationModel(0.0).predict({"height": height, "mass": mass})
+    assert abs(med["neck"] - neck.mean()) < 0.01
+    med, sd = PopulationModel(0.0).predict({"height": 1.65, "mass": 65.0})
+    assert abs(med["neck"] - neck.mean()) < neck.std(ddof=1)
+    assert 0.03 < sd["neck"] < 0.045  # the women's residual SD (0.038) plus the waist's part
+    men, _ = PopulationModel(1.0).predict({"height": 1.65, "mass": 65.0})
+    assert men["neck"] - med["neck"] > 0.03

