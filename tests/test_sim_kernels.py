@@ -527,40 +527,6 @@ def test_make_contacts_with_spheres_matches_reference():
     assert queries == np.count_nonzero(free >= 0.5) < p
 
 
-def test_a_point_between_facing_surfaces_takes_the_middle():
-    """A point between two spheres 1 mm apart (a closing crease, a hand on a knee): where it found the lower one
-    first and then the upper one (a crease: both planes kept), the room (1 mm) cannot give both clearances
-    (2 mm each): each becomes half the room and the point goes to the middle, outside both, instead of
-    the clearance of the plane solved last putting it 1 mm into the other."""
-    from vfit_engine.kernels.cloth import _make_contacts, _solve_contacts
-
-    r = 0.05
-    spheres = np.array([[0.0, -r, 0.0, r], [0.0, 0.001 + r, 0.0, r]])  # surfaces at y = 0 and y = 1 mm
-    v, b = np.zeros((1, 3), np.int64), np.array([[1.0, 0.0, 0.0]])
-    w, skin = np.ones(1), np.full(1, 0.002)
-    st = _fresh_contact_state(1, 1, 0)
-    none = np.zeros((0, 3))
-    for y in (0.0002, 0.0007):  # nearer the lower surface, then the upper: the lower plane is kept
-        x = np.array([[0.0, y, 0.0]])
-        count, _ = _make_contacts(x, w, v, b, skin, spheres, _tiny_grid(), False, 0.002, 0.01, 0.0, st.p_last,
-                                  st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2, st.c_h2, 0, 1,
-                                  none, none, none)
-        assert count == 1
-    assert st.c_nq2[0] == st.c_nq2[0]  # two planes
-    np.testing.assert_allclose([st.c_h[0], st.c_h2[0]], [-0.001 + 0.0005, 0.0005], atol=1e-15)
-    _solve_contacts(x, w, v, b, st.c_n, st.c_h, st.c_list, 0, 1, np.zeros((1, 3)), st.c_n2, st.c_nq2, st.c_h2,
-                    np.zeros(1, np.int64), True, none, none, np.zeros(0))
-    assert x[0, 1] == pytest.approx(0.0005, abs=1e-15)
-    # two planes at right angles (under the bust) or with room for both clearances: each keeps its clearance
-    from vfit_engine.kernels.cloth import _share_room
-
-    for n2, nq2, d2, h in (([1.0, 0.0, 0.0], 0.0, 0.0003, 0.002), ([0.0, -1.0, 0.0], -0.01, 0.0098, 0.002)):
-        c_n, c_nq, c_h = np.array([[0.0, 1.0, 0.0]]), np.zeros(1), np.full(1, 0.002)
-        c_n2, c_nq2, c_h2 = np.array([n2]), np.array([nq2]), np.array([nq2 + 0.002])
-        _share_room(0, 0.0002, d2, 0.002, 0.01, c_n, c_nq, c_h, c_n2, c_nq2, c_h2)
-        assert c_h[0] == h and c_h2[0] == nq2 + 0.002
-
-
 def test_body_velocity_at_a_contact_blends_its_triangle_corners():
     """The body's velocity at a contact point is its triangle's corners' velocities blended by the point's
     barycentric coordinates: exact for a velocity field linear in position (a rigid turn and a stretch)."""

@@ -134,10 +134,6 @@ ACTIVE_GAP = 0.0005
 #: A new contact plane turned further than this (cosine, ~8 degrees) from an earlier one, towards the
 #: point, marks a crease (:func:`_keep_crease`).
 CREASE_COS = 0.99
-#: Two planes of a point whose normals' cosine is below this (more than 120 degrees apart) face each other:
-#: the point lies between two surfaces, and where they are closer than its clearances allow it takes the
-#: middle (:func:`_share_room`).
-PINCH_COS = -0.5
 SYMMETRIC = False
 #: A vertex the contacts pushed out by more than this (m) in a substep is pressed into the body by its own
 #: cloth's tension (resting cloth is pushed ~g dt^2 = 0.04 mm): its constraints stay in the next substep's
@@ -241,7 +237,6 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
             if c_nq2[p] == c_nq2[p]:
                 d2 = c_n2[p, 0] * px + c_n2[p, 1] * py + c_n2[p, 2] * pz - c_nq2[p]
                 c_h2[p] = c_nq2[p] + min(skin[p], d2 + max_push)
-                _share_room(p, d, d2, skin[p], max_push, c_n, c_nq, c_h, c_n2, c_nq2, c_h2)
             c_list[p0 + n_c] = p
             n_c += 1
             continue
@@ -274,29 +269,9 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
         c_n[p, 0], c_n[p, 1], c_n[p, 2] = nx, ny, nz
         c_nq[p] = nx * qx + ny * qy + nz * qz
         c_h[p] = c_nq[p] + min(skin[p], d + max_push)
-        if c_nq2[p] == c_nq2[p]:
-            d2 = c_n2[p, 0] * px + c_n2[p, 1] * py + c_n2[p, 2] * pz - c_nq2[p]
-            _share_room(p, d, d2, skin[p], max_push, c_n, c_nq, c_h, c_n2, c_nq2, c_h2)
         c_list[p0 + n_c] = p
         n_c += 1
     return n_c, queries
-
-
-@njit(inline="always")
-def _share_room(p, d, d2, skin, max_push, c_n, c_nq, c_h, c_n2, c_nq2, c_h2):
-    """Point ``p`` between two surfaces that face each other (its planes' normals more than
-    ``PINCH_COS`` apart), ``d`` and ``d2`` (m) from them: where the room ``d + d2`` is less than the two
-    clearances, each clearance becomes half the room (the point goes to the middle; a negative room,
-    surfaces that overlap, puts it as deep in each). Otherwise the plane projected last in a sweep would
-    win and put the point up to twice the clearance into the other surface (cloth caught in a closing
-    crease, or between a hand and the knee it rests on)."""
-    if c_n[p, 0] * c_n2[p, 0] + c_n[p, 1] * c_n2[p, 1] + c_n[p, 2] * c_n2[p, 2] > PINCH_COS:
-        return
-    room = d + d2
-    if room >= 2.0 * skin:
-        return
-    c_h[p] = c_nq[p] + min(0.5 * room, d + max_push)
-    c_h2[p] = c_nq2[p] + min(0.5 * room, d2 + max_push)
 
 
 @njit(inline="always")

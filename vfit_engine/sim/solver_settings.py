@@ -106,8 +106,9 @@ class ContactSettings:
         (:mod:`vfit_engine.kernels.cloth`, step 5): cloth inside the friction cone stays where it lies on
         the skin. Without it cloth held by friction alone (a skirt's front on sloping thighs) creeps
         downhill by its tangential gravity, g sin(theta) dt^2, every substep (0.7 mm sin(theta) per 1/30 s at
-        1/480 s substeps) and never settles. Off by default: the still drape's results were measured so
-        (its cloth settles hanging from its pins, held by tension, not friction); the animation turns it on.
+        1/480 s substeps). Off by default: the still drape's cloth settles hanging from its pins, held by
+        tension, not friction; and in an animation it also holds cloth that a moving body stretched as
+        stretched as it is (:class:`vfit_engine.animate.loop.AnimateSettings`).
     """
 
     skin: float = 0.002
