@@ -225,14 +225,15 @@ def contact_point(x, v, b, p):
     return b[p, 0] * x[v[p, 0]] + b[p, 1] * x[v[p, 1]] + b[p, 2] * x[v[p, 2]]
 
 
-def push_points(x, w, v, b, planes, push=None, live=False, only=None):
+def push_points(x, w, v, b, planes, push=None, live=False, only=None, carry=None):
     """Each contact point p onto its half-space n . p >= h, in order (copies).
 
     ``planes`` is a list of (p, n (3,), h). A point below by g > 0 moves its vertices by
     ``dx_k = w_k b_k g n / sum_j w_j b_j^2`` (PBD point-triangle constraint: the point itself moves by g).
     ``push`` (n, 3) sums every vertex's moves. ``only``: the points to visit (None: all). Returns
     (x, push), and with ``live`` also the points (in order, once each) that had a plane with gap
-    above -ACTIVE_GAP.
+    above -ACTIVE_GAP. ``carry``: (u (P, 3), push_u (n, 3), push_w (n,)) -- the body's velocity at each point
+    and every vertex's sums of |dx_k| u and |dx_k| (added to in place).
     """
     from vfit_engine.kernels.cloth import ACTIVE_GAP
 
@@ -254,65 +255,78 @@ def push_points(x, w, v, b, planes, push=None, live=False, only=None):
             dk = w[v[p, k]] * b[p, k] * gap / den
             x[v[p, k]] += dk * n
             push[v[p, k]] += dk * n
+            if carry is not None and dk != 0:
+                carry[1][v[p, k]] += dk * carry[0][p]
+                carry[2][v[p, k]] += dk
     if live:
         return x, push, [int(p) for p, g in gaps.items() if g > -ACTIVE_GAP]
     return x, push
 
 
-def contact_velocity(x, xp, w, push, friction, keep_t):
-    """The step's motion of every pushed free vertex, re-expressed through ``xp`` (copy).
+def contact_velocity(x, xp, w, push, friction, keep_t, body=None, stick=False):
+    """The step's motion of every pushed free vertex, re-expressed through ``xp`` (copies: returns (x, xp)).
 
-    With n the direction of its push (amount |push|), v = x - xp: the normal velocity before the push
+    With n the direction of its push (amount |push|) and u the body's own motion in the step under it
+    (``body`` (n, 3), m per step; None: a still body), v = x - xp - u: the normal velocity before the push
     was vn - |push|; an approaching one becomes 0 (inelastic; a receding one is kept), the pushes add
     none; the tangential part shrinks by ``friction`` times the normal change (never reversing) and
-    then by the factor ``keep_t``.
+    then by the factor ``keep_t``; the vertex moves on with u plus that. With ``stick`` the tangential
+    motion friction took off is taken off the position too (the vertex slips only by what is left).
     """
-    xp = xp.copy()
+    x, xp = x.copy(), xp.copy()
     for i in range(x.shape[0]):
         amount = np.linalg.norm(push[i])
         if amount <= 0 or w[i] <= 0:
             continue
+        u = np.zeros(3) if body is None else body[i]
         n = push[i] / amount
-        vel = x[i] - xp[i]
+        vel = x[i] - xp[i] - u
         vn = vel @ n
         vt = vel - vn * n
         vn_in = vn - amount
         vn_new = max(vn_in, 0.0)
         t = np.linalg.norm(vt)
-        scale = keep_t * max(0.0, t - friction * (vn_new - vn_in)) / t if t > 0 else 0.0
-        xp[i] = x[i] - (vn_new * n + scale * vt)
-    return xp
+        slide = max(0.0, t - friction * (vn_new - vn_in))
+        scale = keep_t * slide / t if t > 0 else 0.0
+        if stick and t > 0:
+            x[i] -= (1.0 - slide / t) * vt
+        xp[i] = x[i] - (u + vn_new * n + scale * vt)
+    return x, xp
 
 
-def sphere_contacts(x, w, v, b, skin, spheres, reach, max_push):
+def sphere_contacts(x, w, v, b, skin, spheres, reach, max_push, velocity=None):
     """Contact half-spaces of the points near the spheres (fresh: every point queried).
 
     A point whose free vertices carry less than half its weight is skipped. Its nearest sphere (by
     signed distance d = |p - c| - r; at the centre the normal is +Y) gives the closest point q and
     normal n; a point with ``d < skin + reach`` gets the half-space
-    ``n . p >= n . q + min(skin, d + max_push)``. Returns [(p, n, h)] in point order.
+    ``n . p >= n . q + min(skin, d + max_push)``. Returns [(p, n, h)] in point order; given the spheres'
+    ``velocity`` (S, 3), also (P, 3) the velocity of each point's nearest sphere.
     """
     planes = []
+    u = np.zeros((v.shape[0], 3))
     for p in range(v.shape[0]):
         if sum(b[p, k] for k in range(3) if w[v[p, k]] > 0) < 0.5:
             continue
         pt = contact_point(x, v, b, p)
         best = None
-        for cx, cy, cz, r in spheres:
+        for s, (cx, cy, cz, r) in enumerate(spheres):
             d = pt - [cx, cy, cz]
             dist = np.linalg.norm(d)
             n = d / dist if dist > 0 else np.array([0.0, 1.0, 0.0])
             if best is None or dist - r < best[0]:
-                best = (dist - r, n, np.array([cx, cy, cz]) + r * n)
+                best = (dist - r, n, np.array([cx, cy, cz]) + r * n, s)
         if best is None or not best[0] < skin[p] + reach:
             continue
-        d, n, q = best
+        d, n, q, s = best
+        if velocity is not None:
+            u[p] = velocity[s]
         planes.append((p, n, n @ q + min(skin[p], d + max_push)))
-    return planes
+    return planes if velocity is None else (planes, u)
 
 
 def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, max_push, c_contact, alpha_pins,
-                  segments=None, hinge_every=2):
+                  segments=None, hinge_every=2, sphere_velocity=None, stick=False):
     """One substep of the cloth kernel against sphere colliders, fresh contact memory (copies).
 
     ``cl``: dict with ``inv_mass gravity sp_i sp_j sp_rest sp_k sp_kd`` (and optionally the force hinges' ``h_i
@@ -325,7 +339,9 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     contacts} (the first and last sweeps visit every constraint and contact, the others those the
     first found active or live); the contact velocity. ``segments``: (c_seg, p_seg), each (4,): every
     sweep visits segment 0's constraints then its contacts, then segment 1's, then segment 2's (the
-    kernel's "Two threads"); None: one segment. Returns (x, xp).
+    kernel's "Two threads"); None: one segment. ``sphere_velocity`` (S, 3) m/s: the spheres move, and each
+    pushed vertex's contact velocity is taken relative to the push-weighted mean velocity of the spheres that
+    pushed it (:func:`contact_velocity`); ``stick``: position-level friction. Returns (x, xp).
     """
     w = cl["inv_mass"]
     idx = np.stack([cl["sp_i"], cl["sp_j"]], axis=1)
@@ -337,7 +353,12 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     pin_idx, pin_from, pin_to = pins
     x_new[pin_idx] = pin_from + alpha_pins * (pin_to - pin_from)
     v, b, skin, spheres = pts
-    planes = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push)
+    carry = None
+    if sphere_velocity is not None:
+        planes, u = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push, velocity=sphere_velocity)
+        carry = (u, np.zeros_like(x_new), np.zeros(len(x_new)))
+    else:
+        planes = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push)
     n_c, n_p = len(cl["i"]), len(v)
     c_seg, p_seg = segments if segments is not None else ([0, n_c, n_c, n_c], [0, n_p, n_p, n_p])
     lam = np.zeros(len(cl["i"]))
@@ -360,8 +381,13 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
                 active[g] = found
             mine = [pl for pl in planes if p_seg[g] <= pl[0] < p_seg[g + 1]]
             if it == 0:
-                x_new, push, live[g] = push_points(x_new, w, v, b, mine, push, live=True)
+                x_new, push, live[g] = push_points(x_new, w, v, b, mine, push, live=True, carry=carry)
             else:
-                x_new, push = push_points(x_new, w, v, b, mine, push, only=None if every else set(live[g]))
-    xp_new = contact_velocity(x_new, xp_new, w, push, friction, 1.0 - c_contact)
-    return x_new, xp_new
+                x_new, push = push_points(x_new, w, v, b, mine, push, only=None if every else set(live[g]),
+                                          carry=carry)
+    body = None
+    if carry is not None:
+        held = carry[2] > 0
+        body = np.zeros_like(x_new)
+        body[held] = carry[1][held] / carry[2][held, None] * dt
+    return contact_velocity(x_new, xp_new, w, push, friction, 1.0 - c_contact, body=body, stick=stick)

@@ -393,19 +393,29 @@ def test_solve_contacts_matches_reference():
         planes.append((q, normal[q], h[q]))
         if nq2[q] == nq2[q]:
             planes.append((q, n2[q], h2[q]))
-    ref_x, ref_push, ref_live = naive_sim.push_points(x, w, v, b, planes, live=True)
-    got_x, push = x.copy(), np.zeros_like(x)
+    u = rng.normal(size=(p, 3))  # the body's velocity at each point (a moving body)
+    carry = (u, np.zeros((n, 3)), np.zeros(n))
+    ref_x, ref_push, ref_live = naive_sim.push_points(x, w, v, b, planes, live=True, carry=carry)
     c_list = np.zeros(p, np.int64)
     c_list[:listed.size] = listed
-    c_live = np.full(p, -1, np.int64)
-    n_live = _solve_contacts(got_x, w, v, b, normal, h, c_list, 0, listed.size, push, n2, nq2, h2, c_live, True)
-    np.testing.assert_allclose(got_x, ref_x, rtol=1e-11, atol=1e-14)
-    np.testing.assert_allclose(push, ref_push, rtol=1e-11, atol=1e-14)
-    assert np.array_equal(got_x[w == 0], x[w == 0]) and np.count_nonzero(np.any(push != 0, axis=1)) > 10
-    # the live list: the points pushed or within ACTIVE_GAP of a plane, in order (some are not)
-    assert c_live[:n_live].tolist() == ref_live and 0 < n_live < listed.size
-    # a later sweep over the live points only lists nothing and returns its count
-    assert _solve_contacts(got_x, w, v, b, normal, h, c_live, 0, n_live, push, n2, nq2, h2, c_list, False) == n_live
+    for moving in (False, True):
+        got_x, push = x.copy(), np.zeros_like(x)
+        c_live = np.full(p, -1, np.int64)
+        scratch = (u, np.zeros((n, 3)), np.zeros(n)) if moving else (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+        n_live = _solve_contacts(got_x, w, v, b, normal, h, c_list, 0, listed.size, push, n2, nq2, h2, c_live, True,
+                                 *scratch)
+        np.testing.assert_allclose(got_x, ref_x, rtol=1e-11, atol=1e-14)
+        np.testing.assert_allclose(push, ref_push, rtol=1e-11, atol=1e-14)
+        assert np.array_equal(got_x[w == 0], x[w == 0]) and np.count_nonzero(np.any(push != 0, axis=1)) > 10
+        # the live list: the points pushed or within ACTIVE_GAP of a plane, in order (some are not)
+        assert c_live[:n_live].tolist() == ref_live and 0 < n_live < listed.size
+        if moving:  # each vertex's pushes weigh the body's velocity under it
+            np.testing.assert_allclose(scratch[1], carry[1], rtol=1e-11, atol=1e-14)
+            np.testing.assert_allclose(scratch[2], carry[2], rtol=1e-11, atol=1e-14)
+            assert np.count_nonzero(scratch[2]) > 10
+        # a later sweep over the live points only lists nothing and returns its count
+        assert _solve_contacts(got_x, w, v, b, normal, h, c_live, 0, n_live, push, n2, nq2, h2, c_list, False,
+                               *scratch) == n_live
 
 
 def test_contact_point_is_pushed_exactly_onto_its_plane():
@@ -420,7 +430,7 @@ def test_contact_point_is_pushed_exactly_onto_its_plane():
     for w in (np.ones(3), np.array([0.0, 1.0, 1.0])):
         got, push = x.copy(), np.zeros((3, 3))
         _solve_contacts(got, w, v, b, up, np.array([0.01]), np.zeros(1, np.int64), 0, 1, push, up, np.full(1, np.nan),
-                        np.zeros(1), np.zeros(1, np.int64), False)
+                        np.zeros(1), np.zeros(1, np.int64), False, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
         assert b[0] @ got[:, 1] == pytest.approx(0.01, abs=1e-16)
         np.testing.assert_allclose(got[:, 1], 0.01 * w * b[0] / np.sum(w * b[0] ** 2), atol=1e-16)
         assert np.array_equal(got[:, [0, 2]], x[:, [0, 2]]) and np.array_equal(push, got - x)
@@ -437,23 +447,53 @@ def test_friction_matches_reference_and_analytic():
     w = np.ones(n)
     w[:4] = 0.0
     hot = np.ones(n, np.bool_)
-    for mu, keep in ((0.0, 1.0), (0.8, 1.0), (0.5, 0.7)):
-        ref = naive_sim.contact_velocity(x, xp, w, push, mu, keep)
-        got = xp.copy()
-        _friction(x, got, w, push, mu, keep, hot)
+    dt = 1 / 480
+    # a moving body: the push-weighted sums of the body's velocity under each pushed vertex (m/s)
+    push_w = np.where(np.any(push != 0, axis=1), rng.uniform(0.001, 0.01, n), 0.0)
+    push_u = push_w[:, None] * rng.normal(scale=2.0, size=(n, 3))
+    body = np.zeros((n, 3))
+    body[push_w > 0] = push_u[push_w > 0] * (dt / push_w[push_w > 0, None])
+    still = (np.zeros((0, 3)), np.zeros(0))
+    for mu, keep, moving, stick in ((0.0, 1.0, False, False), (0.8, 1.0, False, False), (0.5, 0.7, False, False),
+                                    (0.5, 0.7, True, False), (0.8, 0.9, False, True), (0.8, 0.9, True, True)):
+        ref_x, ref = naive_sim.contact_velocity(x, xp, w, push, mu, keep, body=body if moving else None, stick=stick)
+        got_x, got = x.copy(), xp.copy()
+        _friction(got_x, got, w, push, mu, keep, hot, *((push_u, push_w) if moving else still), dt, stick)
         np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-15)
-        assert np.array_equal(got[~np.any(push != 0, axis=1)], xp[~np.any(push != 0, axis=1)])
+        np.testing.assert_allclose(got_x, ref_x, rtol=1e-12, atol=1e-15)
+        free = ~np.any(push != 0, axis=1)
+        assert np.array_equal(got[free], xp[free]) and np.array_equal(got_x[free], x[free])
+        assert np.array_equal(got_x, x) != stick  # only stick moves positions
         # the vertices pushed more than PUSH_HOT are marked (their constraints stay in the next middle sweeps)
         assert np.array_equal(hot, np.linalg.norm(push, axis=1) > PUSH_HOT) and 0 < hot.sum() < n
     # one vertex pushed up by 1 mm while it moved down 3 mm and sideways 5 mm in the step: its
     # approaching normal velocity goes (the push adds none), the sideways one loses mu x 3 mm
     x1, xp1 = np.array([[0.0, 0.0, 0.0]]), np.array([[-0.005, 0.002, 0.0]])  # moved (+5, -2) mm after the push
     push1 = np.array([[0.0, 0.001, 0.0]])
-    _friction(x1, xp1, np.ones(1), push1, 0.5, 1.0, np.zeros(1, np.bool_))
+    _friction(x1, xp1, np.ones(1), push1, 0.5, 1.0, np.zeros(1, np.bool_), *still, dt, False)
     np.testing.assert_allclose(x1 - xp1, [[0.005 - 0.5 * 0.003, 0.0, 0.0]], atol=1e-16)
     xp1 = np.array([[-0.005, 0.002, 0.0]])
-    _friction(x1, xp1, np.ones(1), push1, 2.0, 1.0, np.zeros(1, np.bool_))  # friction enough to stop it: never reverses
+    _friction(x1, xp1, np.ones(1), push1, 2.0, 1.0, np.zeros(1, np.bool_), *still, dt, False)  # never reverses
     np.testing.assert_allclose(x1 - xp1, 0.0, atol=1e-16)
+    # the same on a body that moved +5 mm sideways and -2 mm down in the step (its velocity 2.4 m/s, -0.96 m/s):
+    # relative to it the vertex did not slide and was not approaching, so it moves on exactly as the body does
+    xp1 = np.array([[-0.005, 0.002, 0.0]])
+    carried = (np.array([[2.4, -0.96, 0.0]]) * 0.01, np.array([0.01]))
+    _friction(x1, xp1, np.ones(1), push1, 0.5, 0.5, np.zeros(1, np.bool_), *carried, dt, True)
+    np.testing.assert_allclose(x1 - xp1, [[0.005, -0.002, 0.0]], atol=1e-15)
+    # stick: a vertex at rest on a 30 degree slope (friction 0.8 > tan 30) that gravity moved g dt^2 down the
+    # slope and the contact pushed back out: friction takes the slide back, it stays where it was, at rest
+    g = 9.81 * dt * dt
+    nrm, down = np.array([-0.5, math.sqrt(0.75), 0.0]), np.array([-math.sqrt(0.75), -0.5, 0.0])
+    start = np.zeros((1, 3))
+    xs = start + g * (down @ np.array([0.0, -1.0, 0.0])) * down  # the slide along the slope the step left
+    xp_s = start.copy()
+    push_s = (g * math.sqrt(0.75)) * nrm[None, :]
+    for stick, moved in ((False, True), (True, False)):
+        got_x, got_xp = xs.copy(), xp_s.copy()
+        _friction(got_x, got_xp, np.ones(1), push_s, 0.8, 1.0, np.zeros(1, np.bool_), *still, dt, stick)
+        np.testing.assert_allclose(got_x - got_xp, 0.0, atol=1e-18)  # at rest either way
+        assert (np.linalg.norm(got_x - start) > 0.25 * g) == moved  # without stick it slid g sin(30) dt^2
 
 
 def test_make_contacts_with_spheres_matches_reference():
@@ -469,19 +509,50 @@ def test_make_contacts_with_spheres_matches_reference():
     skin = np.where(np.arange(p) < n, 0.002, 0.001)
     spheres = np.array([[0.0, 0.0, 0.0, 0.1], [0.05, 0.02, 0.0, 0.08]])
     reach, max_push = 0.01, 0.001
-    planes = naive_sim.sphere_contacts(x, w, v, b, skin, spheres, reach, max_push)
-    st = _fresh_contact_state(p, n, 0)
+    velocity = rng.normal(size=(2, 3))
+    planes, u = naive_sim.sphere_contacts(x, w, v, b, skin, spheres, reach, max_push, velocity=velocity)
+    st = _fresh_contact_state(p, n, 0, moving=True)
     count, queries = _make_contacts(x, w, v, b, skin, spheres, _tiny_grid(), False, reach, max_push, 0.0,
                                     st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2,
-                                    st.c_h2, 0, p)
+                                    st.c_h2, 0, p, np.zeros((0, 3)), velocity, st.c_u)
     got = st.c_list[:count]
     assert got.tolist() == [q for q, _, _ in planes] and 10 < count < p - 10
+    np.testing.assert_array_equal(st.c_u[got], u[got])  # the velocity of each contact's sphere
+    assert len(np.unique(st.c_u[got], axis=0)) == 2
     np.testing.assert_allclose(st.c_n[got], [nq for _, nq, _ in planes], rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(st.c_h[got], [h for _, _, h in planes], rtol=1e-12, atol=1e-15)
     assert np.all(np.isnan(st.c_nq2[got]))
     # points with most of their weight on pinned vertices are not queried
     free = np.array([sum(b[q, k] for k in range(3) if w[v[q, k]] > 0) for q in range(p)])
     assert queries == np.count_nonzero(free >= 0.5) < p
+
+
+def test_body_velocity_at_a_contact_blends_its_triangle_corners():
+    """The body's velocity at a contact point is its triangle's corners' velocities blended by the point's
+    barycentric coordinates: exact for a velocity field linear in position (a rigid turn and a stretch)."""
+    import trimesh
+
+    from vfit_engine.collide.body_mesh import MeshCollider
+    from vfit_engine.kernels.cloth import _make_contacts
+
+    mesh = trimesh.creation.icosphere(subdivisions=2, radius=0.1)
+    col = MeshCollider(mesh.vertices, mesh.faces)
+    verts = np.asarray(mesh.vertices)
+    a = np.array([[0.1, -2.0, 0.3], [2.0, 0.2, -0.5], [-0.3, 0.5, 0.4]])
+    c0 = np.array([0.5, -0.2, 0.1])
+    vel = np.ascontiguousarray(verts @ a.T + c0)  # m/s
+    rng = np.random.default_rng(5)
+    d = rng.normal(size=(40, 3))
+    x = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True) * 0.1015)  # 1.5 mm out
+    n = len(x)
+    v, b = np.repeat(np.arange(n)[:, None], 3, axis=1).astype(np.int64), np.tile([1.0, 0.0, 0.0], (n, 1))
+    st = _fresh_contact_state(n, n, 0, moving=True)
+    count, _ = _make_contacts(x, np.ones(n), v, b, np.full(n, 0.002), np.zeros((0, 4)), col.grid, True, 0.002, 0.01,
+                              0.0, st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2,
+                              st.c_h2, 0, n, vel, np.zeros((0, 3)), st.c_u)
+    assert count == n
+    _, q, _, _ = col.query(x, max_out=0.01, max_in=0.01)
+    np.testing.assert_allclose(st.c_u, q @ a.T + c0, rtol=1e-9, atol=1e-12)
 
 
 def _tiny_grid():
@@ -494,22 +565,26 @@ def _tiny_grid():
     return MeshCollider(box.vertices + [5.0, 5.0, 5.0], box.faces).grid
 
 
-def _fresh_contact_state(p, n, c, h=0):
+def _fresh_contact_state(p, n, c, h=0, moving=False):
     from vfit_engine.kernels.cloth import ContactState
 
+    m_p, m_n = (p, n) if moving else (0, 0)
     return ContactState(p_last=np.zeros((p, 3)), d_last=np.full(p, -np.inf), c_n=np.zeros((p, 3)), c_nq=np.zeros(p),
                         c_h=np.zeros(p), c_list=np.zeros(p, np.int64), push=np.zeros((n, 3)), f=np.zeros((n, 3)),
                         lam=np.zeros(c), active=np.zeros(c, np.int64), c_n2=np.zeros((p, 3)), c_nq2=np.full(p, np.nan),
                         c_h2=np.zeros(p), c_live=np.zeros(p, np.int64), counts=np.zeros((3, 5), np.int64),
-                        hot=np.zeros(n, np.bool_), h_lam=np.zeros(h), h_active=np.zeros(h, np.int64))
+                        hot=np.zeros(n, np.bool_), h_lam=np.zeros(h), h_active=np.zeros(h, np.int64),
+                        c_u=np.zeros((m_p, 3)), push_u=np.zeros((m_n, 3)), push_w=np.zeros(m_n))
 
 
-@pytest.mark.parametrize("iterations, split", [(1, False), (4, False), (4, True)])
-def test_cloth_substep_matches_reference(iterations, split):
+@pytest.mark.parametrize("iterations, split, moving", [(1, False, False), (4, False, False), (4, True, False),
+                                                       (4, True, True)])
+def test_cloth_substep_matches_reference(iterations, split, moving):
     """One whole substep (springs, Verlet, pins, contacts with spheres, constraint sweeps, contact
     velocity) of a sheet lying over two spheres, against the reference built from the pieces; with
     ``split`` the sheet's halves are the kernel's two threads' segments (the reference visits them in
-    order, as one thread would)."""
+    order, as one thread would); ``moving``: the spheres move (the contact velocity relative to theirs) and
+    friction holds the slip too (stick)."""
     from vfit_engine.garment.springs import grid_polygons
     from vfit_engine.kernels.cloth import ClothArrays, ContactPoints, StepParams, cloth_substeps
     from vfit_engine.sim.contact_points import contact_points
@@ -563,20 +638,23 @@ def test_cloth_substep_matches_reference(iterations, split):
               hc_rest=hc_rest, hc_seg=hc_seg, **c)
     spheres = np.array([[0.0, 0.0, 0.0, 0.1], [0.06, 0.0, 0.03, 0.095]])
     dt, c_air, reach, friction, max_push, c_contact = 1 / 480, 0.01, 0.002, 0.8, 0.001, 0.1
+    velocity = np.array([[0.3, 0.5, -0.2], [-0.4, 0.1, 0.6]]) if moving else None
     ref_x, ref_xp = naive_sim.cloth_substep(x, xp, cl, (pin_idx, pin_from, pin_to), (verts, bary, skin, spheres), dt,
                                             c_air, iterations, reach, friction, max_push, c_contact, alpha_pins=1.0,
-                                            segments=(c_seg, p_seg))
+                                            segments=(c_seg, p_seg), sphere_velocity=velocity, stick=moving)
     arrays = ClothArrays(inv_mass=w, gravity=gravity, sp_i=cl["sp_i"], sp_j=cl["sp_j"], sp_rest=sp_rest, sp_k=sp_k,
                          sp_kd=sp_kd, c_i=c["i"], c_j=c["j"], c_lo=c["lo"], c_hi=c["hi"], c_alpha=c["alpha"],
                          c_relax=c["relax"], c_corner=c["corner"], c_cos_lo=c["cos_lo"], c_cos_hi=c["cos_hi"],
                          c_once=c["once"], sp_seg=sp_seg, c_seg=c_seg, h_i=h_i, h_k=h_k, h_kd=h_kd, h_rest=h_rest,
                          h_seg=h_seg, hc_i=hc_i, hc_alpha=hc_alpha, hc_rest=hc_rest, hc_seg=hc_seg)
     prm = StepParams(dt=dt, c_air=c_air, iterations=iterations, reach=reach, friction=friction, max_push=max_push,
-                     c_contact=c_contact, reuse=0.0, use_grid=False, hinge_every=2)
-    st = _fresh_contact_state(pts.count, n, c["i"].size, hc_i.shape[0])
+                     c_contact=c_contact, reuse=0.0, use_grid=False, hinge_every=2, stick=moving)
+    st = _fresh_contact_state(pts.count, n, c["i"].size, hc_i.shape[0], moving=moving)
     got_x, got_xp = x.copy(), xp.copy()
     queries = cloth_substeps(got_x, got_xp, arrays, pin_idx, pin_from, pin_to,
-                             ContactPoints(pt_v=verts, pt_b=bary, pt_skin=skin, spheres=spheres, p_seg=p_seg),
+                             ContactPoints(pt_v=verts, pt_b=bary, pt_skin=skin, spheres=spheres, p_seg=p_seg,
+                                           body_vel=np.zeros((0, 3)),
+                                           sphere_vel=velocity if moving else np.zeros((0, 3))),
                              _tiny_grid(), prm, st, 0, 1, 1)
     np.testing.assert_allclose(got_x, ref_x, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(got_xp, ref_xp, rtol=1e-9, atol=1e-12)

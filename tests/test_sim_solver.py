@@ -457,6 +457,56 @@ def test_contact_friction_slows_a_sliding_particle():
         assert state.pos[0, 1] == pytest.approx(0.1 + contact.skin, abs=1e-12)
 
 
+def _particle_on_sphere(deg, radius, skin, stick):
+    """A solver with one free particle at rest on a sphere collider ``deg`` degrees from its top, at the skin."""
+    a = np.radians(deg)
+    at = (radius + skin) * np.array([np.sin(a), np.cos(a), 0.0])
+    pos = np.array([at, at + [0.0, 1.0, 0.0]])  # a second, pinned particle far away
+    model = Model.create(pos, np.zeros((0, 2), np.int64), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, np.int64),
+                         np.array([0.01, 0.01]), pin_indices=[1])
+    contact = ContactSettings(skin=skin, friction=0.8, damping=60.0, stick=stick)
+    solver = SolverVerlet(model, VerletSettings(substeps=16, air_damping=0.0), contact,
+                          spheres=np.array([[0.0, 0.0, 0.0, radius]]))
+    return solver, solver.init_state(1 / 480)
+
+
+def test_stick_holds_cloth_on_a_slope_where_velocity_friction_lets_it_creep():
+    """A particle at rest on a sphere 30 degrees from its top (friction 0.8 > tan 30): friction on its velocity
+    alone stops what each substep gained, but gravity's slide within the substep, g sin(30) dt^2, is kept: it
+    creeps down ~0.7 mm per 1/30 s; with stick it stays where it lies."""
+    moved = {}
+    for stick in (False, True):
+        solver, state = _particle_on_sphere(30.0, 0.1, 0.002, stick)
+        start = state.pos[0].copy()
+        for _ in range(10):
+            solver.step_frame(state, 1 / 30)
+        moved[stick] = np.linalg.norm(state.pos[0] - start)
+    creep = 10 * 16 * 9.81 * 0.5 * (1 / 480) ** 2  # g sin(30) dt^2 per substep
+    assert moved[False] == pytest.approx(creep, rel=0.1)
+    assert moved[True] < 1e-9
+
+
+def test_a_moving_body_carries_the_cloth_resting_on_it():
+    """A particle resting on top of a sphere that sets off sideways at 0.5 m/s (SolverVerlet.body_moved with the
+    spheres' velocity, every substep): friction and damping act relative to the sphere, which takes it along
+    (it slips ~u / damping = 8 mm while it comes up to speed, then moves with the sphere); without the
+    velocity the contact takes the sphere for still and holds the particle back: it slides off behind."""
+    left, speed_end = {}, {}
+    for carried in (False, True):
+        solver, state = _particle_on_sphere(0.0, 0.1, 0.002, stick=True)
+        speed = np.array([[0.5, 0.0, 0.0]])
+        centre = np.zeros(3)
+        for _ in range(10 * 16):
+            centre = centre + speed[0] / 480
+            solver.body_moved(0.001, spheres=np.array([[*centre, 0.1]]),
+                              sphere_velocity=speed if carried else np.zeros((1, 3)))
+            solver.step(state, 1 / 480)
+        left[carried] = state.pos[0, 0] - centre[0]  # how far it lags behind the top
+        speed_end[carried] = (state.pos[0, 0] - state.pos_prev[0, 0]) * 480
+    assert -0.01 < left[True] < 0.0 and speed_end[True] == pytest.approx(0.5, abs=1e-3)
+    assert left[False] < -0.05
+
+
 def _icosphere_body(radius=0.1, subdivisions=4):
     from vfit_engine.collide.body_mesh import MeshCollider
 

@@ -1,6 +1,6 @@
 """The body an animation's cloth meets (:class:`MovingBody`): which of its triangles collide
 (:func:`reach_triangles`), the exact surface moving with the pose, and sphere colliders that follow the bones
-(:class:`BoneSpheres`)."""
+(:class:`BoneSpheres`); and the body's velocity through each frame (the cloth's contacts act relative to it)."""
 from __future__ import annotations
 
 import numpy as np
@@ -79,6 +79,7 @@ class MovingBody:
         # the cloth was expected to meet: cloth through a part left out of the collision must show
         self.whole = self.collider if active.all() else MovingBodyCollider(bodies[0], self.tris, box=(lo, hi))
         self.judged = 0
+        self._vel, self._vel_frame = np.zeros_like(bodies[0]), -1
         self.spheres = None if st.collider == "mesh" else BoneSpheres.fitted(setup.body, model, mats, dst,
                                                                                 st.collider)
 
@@ -95,12 +96,18 @@ class MovingBody:
         return self.whole
 
     def at(self, k, s):
-        """Put the body at time ``s`` of frame ``k``: (how far it moved at most (m), sphere colliders or None)."""
+        """Put the body at time ``s`` of frame ``k``: (how far it moved at most (m), sphere colliders or None, the
+        body mesh's vertices' velocity (v, 3) m/s or None, the spheres' (S, 3) m/s or None). The body goes from
+        frame to frame on straight lines: its velocity is constant through a frame."""
         self.time = (k - 1 + s) / self.st.fps
         if self.spheres is not None:
-            return 0.0, self.spheres.at(k, s)
+            return 0.0, self.spheres.at(k, s), None, self.spheres.velocity(k, self.st.fps)
         self.collider.at(s)
-        return self.collider.motion_bound, None
+        if self._vel_frame != k:
+            np.subtract(self.bodies[k], self.bodies[k - 1], out=self._vel)
+            self._vel *= self.st.fps
+            self._vel_frame = k
+        return self.collider.motion_bound, None, self._vel, None
 
     def describe(self):
         c = self.collider
@@ -187,3 +194,7 @@ class BoneSpheres:
         c0 = self.centres[max(k - 1, 0)]
         self._out[:, :3] = c0 + s * (self.centres[k] - c0)
         return self._out.copy()
+
+    def velocity(self, k, fps):
+        """(s, 3) m/s: the centres' velocity through frame ``k`` (``fps`` frames per second)."""
+        return (self.centres[k] - self.centres[max(k - 1, 0)]) * fps

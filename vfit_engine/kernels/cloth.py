@@ -22,9 +22,15 @@ the same Gauss-Seidel loop, as in position based dynamics, Mueller et al. 2007):
        after the first (``ACTIVE_BAND``) or at a vertex the contacts pushed hard in the last substep
        (``PUSH_HOT``), and the contacts near or below their half-spaces (``ACTIVE_GAP``): most cloth lies
        well inside its bands and clear of the body
-    5. contact velocity: the pushes add no velocity; the approaching normal velocity of a pushed
-       vertex is removed (inelastic), its tangential velocity shrinks by ``friction`` times the
-       normal change (Coulomb, never reversing) and by the contact damping.
+    5. contact velocity, relative to the body's own velocity u at the contact (a moving body carries the
+       cloth it touches; u = 0 on a still body): the pushes add no velocity; the approaching normal
+       velocity of a pushed vertex is removed (inelastic), its tangential velocity shrinks by ``friction``
+       times the normal change (Coulomb, never reversing) and by the contact damping. With ``stick`` the
+       friction acts on the step's tangential slip too (position-level friction, Macklin, Mueller,
+       Chentanez & Kim 2014, "Unified particle physics", section 6.1): the slip is taken back by as much
+       as the velocity loses, so cloth within the friction cone does not move on the skin at all; without
+       it, cloth resting on a slope slides g sin(theta) dt^2 every substep however large the friction
+       (velocity-level friction only stops what the step had gained).
 
 A distance constraint keeps the length l = |x_j - x_i| of a vertex pair inside a band
 ``[lo, hi]``: outside it C = l - hi (or l - lo) and, with compliance alpha (m/N, the inverse of a
@@ -91,8 +97,11 @@ ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", 
 
 #: Contact points: pt_v (P, 3) int64 vertices and pt_b (P, 3) float64 barycentric weights (cloth
 #: vertex i is (i, i, i) with (1, 0, 0)); pt_skin (P,) m, the clearance each keeps; spheres (S, 4)
-#: float64: sphere colliders (centre, radius), m; p_seg (4,) int64: the points' segments.
-ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres", "p_seg"])
+#: float64: sphere colliders (centre, radius), m; p_seg (4,) int64: the points' segments; body_vel (V, 3)
+#: m/s: the velocity of the body grid's vertices (``grid.tris`` numbering) and sphere_vel (S, 3) m/s the
+#: spheres' (their centres'), during the substeps; both (0, 3) for a still body (nothing to carry).
+ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres", "p_seg", "body_vel",
+                                             "sphere_vel"])
 
 #: Per-point contact memory (in/out): p_last (P, 3) m and d_last (P,) m (position and a lower bound
 #: of the signed distance at the last query; ``-inf`` forces one), c_n (P, 3) and c_nq (P,) m (the
@@ -101,16 +110,19 @@ ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres
 #: and c_h2 (P,) m; c_live (P,) int64 (the contacts a substep's middle sweeps solve); counts (3, 5) int64:
 #: per segment its contacts, live contacts, active constraints, queries and active hinge constraints; hot (n,)
 #: bool: the vertices the contacts pushed more than ``PUSH_HOT`` in the last substep; h_lam (K,): the hinge
-#: constraints' multipliers; h_active (K,) int64: the hinge constraints a substep's middle passes solve.
+#: constraints' multipliers; h_active (K,) int64: the hinge constraints a substep's middle passes solve; for a
+#: moving body (``body_vel`` or ``sphere_vel`` given): c_u (P, 3) m/s, the body's velocity at each contact's
+#: closest point (at its last query), and scratch push_u (n, 3) m^2/s, push_w (n,) m: each vertex's pushes'
+#: sum of |move| u and of |move| (the body's velocity under it is their ratio).
 ContactState = namedtuple("ContactState", ["p_last", "d_last", "c_n", "c_nq", "c_h", "c_list", "push", "f", "lam",
                                            "active", "c_n2", "c_nq2", "c_h2", "c_live", "counts", "hot", "h_lam",
-                                           "h_active"])
+                                           "h_active", "c_u", "push_u", "push_w"])
 
 #: Scalars of a substep: dt s, c_air (per step), iterations, reach m, friction, max_push m,
 #: c_contact (per step), reuse m, use_grid (query the body grid), hinge_every (the hinge constraints are
-#: solved in every hinge_every-th sweep and the last).
+#: solved in every hinge_every-th sweep and the last), stick (friction on the slip too: step 5).
 StepParams = namedtuple("StepParams", ["dt", "c_air", "iterations", "reach", "friction", "max_push",
-                                       "c_contact", "reuse", "use_grid", "hinge_every"])
+                                       "c_contact", "reuse", "use_grid", "hinge_every", "stick"])
 
 #: A constraint within this fraction of its band's ends after a substep's first sweep (or holding a
 #: force) stays in that substep's later sweeps; the others are skipped (most cloth lies well inside
@@ -144,15 +156,17 @@ def _point(x, v, b, p):
 
 @njit
 def _sphere_query(px, py, pz, spheres):
-    """Signed distance to the nearest sphere's surface, its closest point and outward normal."""
+    """Signed distance to the nearest sphere's surface, its closest point, outward normal and index."""
     best = math.inf
     qx = qy = qz = nx = ny = nz = 0.0
+    best_s = -1
     for s in range(spheres.shape[0]):
         dx, dy, dz = px - spheres[s, 0], py - spheres[s, 1], pz - spheres[s, 2]
         r = math.sqrt(dx * dx + dy * dy + dz * dz)
         d = r - spheres[s, 3]
         if d < best:
             best = d
+            best_s = s
             if r > 0.0:
                 nx, ny, nz = dx / r, dy / r, dz / r
             else:
@@ -160,14 +174,41 @@ def _sphere_query(px, py, pz, spheres):
             qx = spheres[s, 0] + spheres[s, 3] * nx
             qy = spheres[s, 1] + spheres[s, 3] * ny
             qz = spheres[s, 2] + spheres[s, 3] * nz
-    return best, qx, qy, qz, nx, ny, nz
+    return best, qx, qy, qz, nx, ny, nz, best_s
+
+
+@njit(inline="always")
+def _velocity_on_triangle(grid, body_vel, t, qx, qy, qz):
+    """The body's velocity (m/s) at point q of grid triangle ``t``: its corners' velocities ``body_vel`` blended
+    by q's barycentric coordinates (Ericson 2005, 3.4; a degenerate triangle takes its first corner's)."""
+    rec = grid.tri_data
+    ax, ay, az = rec[t, 6], rec[t, 7], rec[t, 8]
+    e0x, e0y, e0z = rec[t, 9] - ax, rec[t, 10] - ay, rec[t, 11] - az
+    e1x, e1y, e1z = rec[t, 12] - ax, rec[t, 13] - ay, rec[t, 14] - az
+    e2x, e2y, e2z = qx - ax, qy - ay, qz - az
+    d00 = e0x * e0x + e0y * e0y + e0z * e0z
+    d01 = e0x * e1x + e0y * e1y + e0z * e1z
+    d11 = e1x * e1x + e1y * e1y + e1z * e1z
+    d20 = e2x * e0x + e2y * e0y + e2z * e0z
+    d21 = e2x * e1x + e2y * e1y + e2z * e1z
+    den = d00 * d11 - d01 * d01
+    bb = bc = 0.0
+    if den > 0.0:
+        bb = min(max((d11 * d20 - d01 * d21) / den, 0.0), 1.0)
+        bc = min(max((d00 * d21 - d01 * d20) / den, 0.0), 1.0 - bb)
+    ba = 1.0 - bb - bc
+    i0, i1, i2 = grid.tris[t, 0], grid.tris[t, 1], grid.tris[t, 2]
+    return (ba * body_vel[i0, 0] + bb * body_vel[i1, 0] + bc * body_vel[i2, 0],
+            ba * body_vel[i0, 1] + bb * body_vel[i1, 1] + bc * body_vel[i2, 1],
+            ba * body_vel[i0, 2] + bb * body_vel[i1, 2] + bc * body_vel[i2, 2])
 
 
 @njit
 def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_push, reuse,
-                   p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2, p0, p1):
+                   p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2, p0, p1, body_vel, sphere_vel, c_u):
     """Contact half-spaces of the points ``p0 .. p1 - 1`` that may touch the body (step 3), listed in
-    ``c_list`` from index ``p0``; returns (contacts, queries).
+    ``c_list`` from index ``p0``; returns (contacts, queries). Given the body's velocities (``body_vel``,
+    ``sphere_vel``: not empty), a point queried afresh keeps the body's velocity at its closest point in ``c_u``.
 
     In a crease (under the bust, the armpit) a point lies near two surfaces and its closest point
     jumps from one to the other as it moves: a point whose new plane turned by more than
@@ -203,14 +244,21 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
         query_out = band + 4.0 * reach  # a looser band makes the clear-distance bound last longer
         d = query_out
         qx = qy = qz = nx = ny = nz = 0.0
+        ux = uy = uz = 0.0
         if use_grid:
             dg, gqx, gqy, gqz, gnx, gny, gnz, t = _query_point(px, py, pz, grid, True, query_out, math.inf)
             if t >= 0:
                 d, qx, qy, qz, nx, ny, nz = dg, gqx, gqy, gqz, gnx, gny, gnz
+                if body_vel.shape[0] > 0:
+                    ux, uy, uz = _velocity_on_triangle(grid, body_vel, t, qx, qy, qz)
         if spheres.shape[0] > 0:
-            ds, sqx, sqy, sqz, snx, sny, snz = _sphere_query(px, py, pz, spheres)
+            ds, sqx, sqy, sqz, snx, sny, snz, s = _sphere_query(px, py, pz, spheres)
             if ds < d:
                 d, qx, qy, qz, nx, ny, nz = ds, sqx, sqy, sqz, snx, sny, snz
+                if sphere_vel.shape[0] > 0:
+                    ux, uy, uz = sphere_vel[s, 0], sphere_vel[s, 1], sphere_vel[s, 2]
+        if c_u.shape[0] > 0:
+            c_u[p, 0], c_u[p, 1], c_u[p, 2] = ux, uy, uz
         queries += 1
         p_last[p, 0], p_last[p, 1], p_last[p, 2] = px, py, pz
         if not d < band:
@@ -373,16 +421,20 @@ def _solve_distances(x, w, ci, cj, c_lo, c_hi, c_alpha, c_relax, c_corner, c_cos
 
 
 @njit
-def _solve_contacts(x, inv_mass, v, b, c_n, c_h, c_list, start, n_c, push, c_n2, c_nq2, c_h2, c_live, first):
+def _solve_contacts(x, inv_mass, v, b, c_n, c_h, c_list, start, n_c, push, c_n2, c_nq2, c_h2, c_live, first, c_u,
+                    push_u, push_w):
     """Project the contact points ``c_list[start:start + n_c]`` onto their half-space(s), spreading each
     move over its vertices. The ``first`` sweep lists in ``c_live`` (from ``start``) the points that were
-    below or within ``ACTIVE_GAP`` of a half-space and returns their count (else returns ``n_c``)."""
+    below or within ``ACTIVE_GAP`` of a half-space and returns their count (else returns ``n_c``). With
+    ``c_u`` (not empty) each move also adds |move| times the body's velocity at the point to ``push_u`` and
+    |move| to ``push_w``."""
     n_live = 0
     for m in range(start, start + n_c):
         p = c_list[m]
-        gap = _push_point(x, inv_mass, v, b, p, c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p], push)
+        gap = _push_point(x, inv_mass, v, b, p, c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p], push, c_u, push_u, push_w)
         if c_nq2[p] == c_nq2[p]:
-            gap = max(gap, _push_point(x, inv_mass, v, b, p, c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p], push))
+            gap = max(gap, _push_point(x, inv_mass, v, b, p, c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p], push, c_u,
+                                       push_u, push_w))
         if first and gap > -ACTIVE_GAP:
             c_live[start + n_live] = p
             n_live += 1
@@ -390,9 +442,10 @@ def _solve_contacts(x, inv_mass, v, b, c_n, c_h, c_list, start, n_c, push, c_n2,
 
 
 @njit(inline="always")
-def _push_point(x, inv_mass, v, b, p, nx, ny, nz, h, push):
+def _push_point(x, inv_mass, v, b, p, nx, ny, nz, h, push, c_u, push_u, push_w):
     """Move point ``p`` onto the half-space n . p >= h (if outside it), spread over its vertices;
-    returns the gap h - n . p it had (m; > 0: it was pushed)."""
+    returns the gap h - n . p it had (m; > 0: it was pushed). Weighs the body's velocity ``c_u[p]`` into
+    ``push_u`` / ``push_w`` when ``c_u`` is not empty (:func:`_solve_contacts`)."""
     px, py, pz = _point(x, v, b, p)
     gap = h - (nx * px + ny * py + nz * pz)
     if gap <= 0.0:
@@ -414,21 +467,35 @@ def _push_point(x, inv_mass, v, b, p, nx, ny, nz, h, push):
         push[ik, 0] += dk * nx
         push[ik, 1] += dk * ny
         push[ik, 2] += dk * nz
+        if c_u.shape[0] > 0:
+            push_u[ik, 0] += dk * c_u[p, 0]
+            push_u[ik, 1] += dk * c_u[p, 1]
+            push_u[ik, 2] += dk * c_u[p, 2]
+            push_w[ik] += dk
     return gap
 
 
 @njit
-def _friction(x, xp, inv_mass, push, friction, keep_t, hot):
+def _friction(x, xp, inv_mass, push, friction, keep_t, hot, push_u, push_w, dt, stick):
     """Contact velocity (step 5) of every pushed vertex; ``push`` (n, 3) is its summed push, m. Marks
-    in ``hot`` the vertices pushed more than ``PUSH_HOT``."""
+    in ``hot`` the vertices pushed more than ``PUSH_HOT``.
+
+    Velocities are displacements over the step ``dt`` relative to the body's: ``push_u / push_w`` (m/s,
+    :func:`_solve_contacts`) where ``push_w`` is not empty, else 0 (a still body). With ``stick`` the
+    tangential slip is taken back as far as friction stops it (module docstring, step 5)."""
+    moving = push_w.shape[0] > 0
     for i in range(x.shape[0]):
         p0, p1, p2 = push[i, 0], push[i, 1], push[i, 2]
         amount = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
         hot[i] = amount > PUSH_HOT
         if amount <= 0.0 or inv_mass[i] <= 0.0:
             continue
+        ux = uy = uz = 0.0
+        if moving and push_w[i] > 0.0:
+            s = dt / push_w[i]
+            ux, uy, uz = push_u[i, 0] * s, push_u[i, 1] * s, push_u[i, 2] * s
         nx, ny, nz = p0 / amount, p1 / amount, p2 / amount
-        vx, vy, vz = x[i, 0] - xp[i, 0], x[i, 1] - xp[i, 1], x[i, 2] - xp[i, 2]
+        vx, vy, vz = x[i, 0] - xp[i, 0] - ux, x[i, 1] - xp[i, 1] - uy, x[i, 2] - xp[i, 2] - uz
         vn = vx * nx + vy * ny + vz * nz
         tx, ty, tz = vx - vn * nx, vy - vn * ny, vz - vn * nz
         vn_in = vn - amount  # the normal velocity before the push
@@ -436,10 +503,16 @@ def _friction(x, xp, inv_mass, push, friction, keep_t, hot):
         vt = math.sqrt(tx * tx + ty * ty + tz * tz)
         scale = 0.0
         if vt > 0.0:
-            scale = keep_t * max(0.0, vt - friction * (vn_new - vn_in)) / vt
-        xp[i, 0] = x[i, 0] - (vn_new * nx + scale * tx)
-        xp[i, 1] = x[i, 1] - (vn_new * ny + scale * ty)
-        xp[i, 2] = x[i, 2] - (vn_new * nz + scale * tz)
+            slide = max(0.0, vt - friction * (vn_new - vn_in))
+            scale = keep_t * slide / vt
+            if stick:
+                back = 1.0 - slide / vt
+                x[i, 0] -= back * tx
+                x[i, 1] -= back * ty
+                x[i, 2] -= back * tz
+        xp[i, 0] = x[i, 0] - (ux + vn_new * nx + scale * tx)
+        xp[i, 1] = x[i, 1] - (uy + vn_new * ny + scale * ty)
+        xp[i, 2] = x[i, 2] - (uz + vn_new * nz + scale * tz)
 
 
 @njit(parallel=True)
@@ -485,12 +558,14 @@ def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub
         st.lam[:] = 0.0
         st.h_lam[:] = 0.0
         st.push[:] = 0.0
+        st.push_u[:] = 0.0
+        st.push_w[:] = 0.0
         for it in range(prm.iterations):
             hinges = it % prm.hinge_every == 0 or it == prm.iterations - 1
             for g in prange(2):
                 _sweep_segment(x, cl, pts, st, g, it, prm.iterations, 1.0 / (dt * dt), hinges, prm.hinge_every)
             _sweep_segment(x, cl, pts, st, 2, it, prm.iterations, 1.0 / (dt * dt), hinges, prm.hinge_every)
-        _friction(x, xp, w, st.push, prm.friction, 1.0 - prm.c_contact, st.hot)
+        _friction(x, xp, w, st.push, prm.friction, 1.0 - prm.c_contact, st.hot, st.push_u, st.push_w, dt, prm.stick)
     return queries
 
 
@@ -518,12 +593,12 @@ def _sweep_segment(x, cl, pts, st, g, it, iterations, at_scale, hinges, hinge_ev
         counts[g, 2] = n
     if full:
         n = _solve_contacts(x, cl.inv_mass, pts.pt_v, pts.pt_b, st.c_n, st.c_h, st.c_list, p0, counts[g, 0],
-                            st.push, st.c_n2, st.c_nq2, st.c_h2, st.c_live, it == 0)
+                            st.push, st.c_n2, st.c_nq2, st.c_h2, st.c_live, it == 0, st.c_u, st.push_u, st.push_w)
         if it == 0:
             counts[g, 1] = n
     else:
         _solve_contacts(x, cl.inv_mass, pts.pt_v, pts.pt_b, st.c_n, st.c_h, st.c_live, p0, counts[g, 1], st.push,
-                        st.c_n2, st.c_nq2, st.c_h2, st.c_live, False)
+                        st.c_n2, st.c_nq2, st.c_h2, st.c_live, False, st.c_u, st.push_u, st.push_w)
 
 
 @njit
@@ -532,4 +607,4 @@ def _contacts_of_segment(x, w, pts, grid, prm, st, g):
     st.counts[g, 0], st.counts[g, 3] = _make_contacts(
         x, w, pts.pt_v, pts.pt_b, pts.pt_skin, pts.spheres, grid, prm.use_grid, prm.reach, prm.max_push, prm.reuse,
         st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2, st.c_h2, pts.p_seg[g],
-        pts.p_seg[g + 1])
+        pts.p_seg[g + 1], pts.body_vel, pts.sphere_vel, st.c_u)

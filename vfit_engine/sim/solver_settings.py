@@ -101,6 +101,14 @@ class ContactSettings:
     reuse : float, m
         A point in contact that moved less than this since its last exact query keeps that query's
         tangent plane; 0 queries every substep.
+    stick : bool
+        Friction acts on the cloth's slip within a substep too, not only on its velocity
+        (:mod:`vfit_engine.kernels.cloth`, step 5): cloth inside the friction cone stays where it lies on
+        the skin. Without it cloth held by friction alone (a skirt's front on sloping thighs) creeps
+        downhill by its tangential gravity, g sin(theta) dt^2, every substep (0.7 mm sin(theta) per 1/30 s at
+        1/480 s substeps). Off by default: the still drape's cloth settles hanging from its pins, held by
+        tension, not friction; and in an animation it also holds cloth that a moving body stretched as
+        stretched as it is (:class:`vfit_engine.animate.loop.AnimateSettings`).
     """
 
     skin: float = 0.002
@@ -109,3 +117,4 @@ class ContactSettings:
     friction: float = 0.8
     damping: float = 0.0
     reuse: float = 0.0005
+    stick: bool = False

@@ -169,6 +169,9 @@ class SolverVerlet:
         self._c_n2, self._c_nq2, self._c_h2 = np.zeros((p, 3)), np.full(p, np.nan), np.zeros(p)
         self._push = np.zeros((self.model.particle_count, 3))
         self._hot = np.zeros(self.model.particle_count, dtype=np.bool_)
+        # a still body: no velocities (body_moved gives them, and the scratch to carry the cloth with them)
+        self._body_vel, self._sphere_vel = np.zeros((0, 3)), np.zeros((0, 3))
+        self._c_u, self._push_u, self._push_w = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
 
     def sweep_from(self, vertices):
         """Sweep the constraints outward from ``vertices`` (by graph distance, nearest first).
@@ -229,7 +232,7 @@ class SolverVerlet:
         self._const_dt = None
 
     # -- a moving body (issue 13: added by the animation's work; vfit_engine.animate) -------------------------
-    def body_moved(self, distance, spheres=None):
+    def body_moved(self, distance, spheres=None, velocity=None, sphere_velocity=None):
         """The body moved since the last step: take its grid again (``self.body.grid``; a moving body's collider
         makes one per frame) and, given ``spheres`` (S, 4) m, the sphere colliders' new centres and radii.
 
@@ -237,6 +240,12 @@ class SolverVerlet:
         bound near each (the contact points are looked up where they were last queried). A point proven clear
         of the body is proven that much less clear, and one that was touching it queries it afresh where the
         body moved more than ``contact.reuse`` (the tangent plane it kept moved with the body).
+
+        ``velocity`` (V, 3) m/s, the body mesh's vertices' velocity during the coming steps (the grid's vertex
+        numbering), and ``sphere_velocity`` (S, 3) m/s, the spheres': the contacts' friction, damping and
+        inelastic push then act on the cloth's velocity relative to the body's at the contact, so a moving limb
+        carries the cloth it touches (:mod:`vfit_engine.kernels.cloth`, step 5). Once given, they stay until
+        given again.
         """
         if self.body is not None:
             self._grid = self.body.grid
@@ -245,6 +254,19 @@ class SolverVerlet:
             if spheres.shape != self._spheres.shape:
                 raise ValueError(f"spheres must have shape {self._spheres.shape}, got {spheres.shape}")
             self._spheres = spheres
+        if velocity is not None:
+            velocity = np.ascontiguousarray(velocity, dtype=np.float64)
+            if velocity.ndim != 2 or velocity.shape[1] != 3 or self.body is None:
+                raise ValueError("velocity must have shape (V, 3), the body mesh's vertices'")
+            self._body_vel = velocity
+        if sphere_velocity is not None:
+            sphere_velocity = np.array(sphere_velocity, dtype=np.float64, order="C")
+            if sphere_velocity.shape != (self._spheres.shape[0], 3):
+                raise ValueError(f"sphere_velocity must have shape ({self._spheres.shape[0]}, 3)")
+            self._sphere_vel = sphere_velocity
+        if (self._body_vel.shape[0] or self._sphere_vel.shape[0]) and not self._push_w.shape[0]:
+            n, p = self.model.particle_count, self.points.count
+            self._c_u, self._push_u, self._push_w = np.zeros((p, 3)), np.zeros((n, 3)), np.zeros(n)
         d = distance(self._p_last) if callable(distance) else float(distance)
         self._d_last -= d
         self._d_last[(self._d_last < self._pt_skin + self.contact.reach) & (d > self.contact.reuse)] = -math.inf
@@ -454,11 +476,13 @@ class SolverVerlet:
         c = self.contact
         prm = StepParams(dt, self._c_air, int(self.settings.iterations), float(c.reach), float(c.friction),
                          float(self.max_push), 1.0 - math.exp(-float(c.damping) * dt), float(c.reuse),
-                         self.body is not None, int(self.settings.hinge_every))
-        pts = ContactPoints(self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._p_seg)
+                         self.body is not None, int(self.settings.hinge_every), bool(c.stick))
+        pts = ContactPoints(self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._p_seg, self._body_vel,
+                            self._sphere_vel)
         cst = ContactState(self._p_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_list, self._push,
                            self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2, self._c_live,
-                           self._counts, self._hot, self._h_lam, self._h_active)
+                           self._counts, self._hot, self._h_lam, self._h_active, self._c_u, self._push_u,
+                           self._push_w)
         x, xp = self._x, self._xp
         np.take(state.pos, self._order, axis=0, out=x)
         np.take(state.pos_prev, self._order, axis=0, out=xp)
