@@ -97,3 +97,20 @@ def spline_length(pts, samples=8):
         tt = np.concatenate([np.linspace(t[j], t[j + 1], samples + 1)[:-1] for j in range(len(t) - 1)] + [t[-1:]])
         total += polyline_length(cs(tt), closed=False)
     return total
+
+
+def edge_tables(tris):
+    """``build_topology``'s tables the plain way: a dict of sorted vertex pairs, edges in sorted order.
+
+    Returns (edges (E, 2), tri_edges (T, 3), edge_tris (E, 2), counts (E,)), all int64.
+    """
+    users = {}
+    for t, tri in enumerate(tris.tolist()):
+        for k in range(3):
+            users.setdefault(tuple(sorted((tri[k], tri[(k + 1) % 3]))), []).append(t)
+    keys = sorted(users)
+    index = {e: i for i, e in enumerate(keys)}
+    tri_edges = [[index[tuple(sorted((tri[k], tri[(k + 1) % 3])))] for k in range(3)] for tri in tris.tolist()]
+    edge_tris = [(users[e] + [-1, -1])[:2] for e in keys]
+    return (np.array(keys, dtype=np.int64).reshape(-1, 2), np.array(tri_edges, dtype=np.int64).reshape(-1, 3),
+            np.array(edge_tris, dtype=np.int64).reshape(-1, 2), np.array([len(users[e]) for e in keys]))

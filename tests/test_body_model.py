@@ -112,3 +112,27 @@ def test_load_from_explicit_path(tmp_path):
     dst = tmp_path / "copy.npz"
     dst.write_bytes(src.read_bytes())
     assert BodyModel.load(dst).base_verts.shape == (N_VERTS, 3)
+
+
+def test_packaged_model_is_read_from_an_uncompressed_copy(tmp_path, monkeypatch):
+    """The copy in the user's cache has the same arrays; a changed source gets a new copy (the old one
+    removed); an unwritable cache falls back to the source."""
+    import os
+
+    from vfit_engine.body.model import _inflated
+
+    monkeypatch.setenv("VFIT_CACHE", str(tmp_path / "cache"))
+    src = tmp_path / "hm08.npz"
+    src.write_bytes((data_dir() / "hm08.npz").read_bytes())
+    copy = _inflated(src)
+    assert copy.parent == tmp_path / "cache" and _inflated(src) == copy
+    with np.load(src) as a, np.load(copy) as b:
+        assert a.files == b.files
+        for k in a.files:
+            assert a[k].dtype == b[k].dtype and np.array_equal(a[k], b[k]), k
+    assert copy.stat().st_size > src.stat().st_size  # stored, not deflated
+    os.utime(src, ns=(src.stat().st_atime_ns, src.stat().st_mtime_ns + 10**9))
+    newer = _inflated(src)
+    assert newer != copy and newer.exists() and not copy.exists()
+    monkeypatch.setenv("VFIT_CACHE", str(src))  # a file, so no directory can be made there
+    assert _inflated(src) == src

@@ -35,6 +35,30 @@ def test_help_does_not_import_numba():
     assert out.split() == ["False"] * 4
 
 
+def test_help_lists_every_command():
+    from vfit_cli.main import COMMANDS
+
+    listed = [ln.split()[0] for ln in run("--help").output.split("Commands:")[1].splitlines() if ln.strip()]
+    assert listed == sorted(COMMANDS)
+
+
+def test_morph_imports_neither_other_commands_nor_scipy_linalg(tmp_path):
+    """A morph imports only its own command and, of SciPy, the BLAS module Numba checks for
+    (vfit_engine._jit); Numba's BLAS calls still give NumPy's results, and scipy.linalg still imports."""
+    code = ("import sys\nfrom vfit_cli.main import cli\n"
+            f"cli(['morph', '--height', '170', '-q', '-o', {str(tmp_path / 'b.obj')!r}], standalone_mode=False)\n"
+            "print(sorted(m for m in sys.modules if m.startswith('vfit_cli.') and m[9:] in "
+            "('animate', 'batch', 'drape', 'measure', 'pose', 'segment', 'size', 'transfer')), "
+            "'scipy.linalg' in sys.modules)\n"
+            "import numpy as np, numba\n"
+            "a = np.random.default_rng(0).random((40, 40))\n"
+            "dot = numba.njit(lambda x, y: np.dot(x, y))\n"
+            "import scipy.linalg\n"
+            "print(np.array_equal(dot(a, a.T.copy()), a @ a.T), np.allclose(scipy.linalg.inv(a) @ a, np.eye(40)))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.splitlines()[-2:] == ["[] False", "True True"]
+
+
 def test_morph_then_measure(tmp_path):
     body = tmp_path / "b.obj"
     report = tmp_path / "b.json"

@@ -100,3 +100,19 @@ def test_arms_apart_kernel_matches_numpy(body_model, measurer):
         assert sections.apart(verts, ys).tolist() == want, gender
         seen.update(want)
     assert seen == {True, False}
+
+
+def test_breast_regions_match_a_loop(body_model):
+    """Per body vertex, the bone of its first largest skin weight, as a plain loop finds it."""
+    from vfit_engine.body.measure import breast_regions
+    from vfit_engine.body.model import N_BODY
+
+    bone, vert, weight = body_model.skin
+    best, best_bone = np.zeros(N_BODY), np.full(N_BODY, -1)
+    for b, v, w in zip(bone.tolist(), vert.tolist(), weight.tolist()):
+        if v < N_BODY and w > best[v]:
+            best[v], best_bone[v] = w, b
+    want = [np.flatnonzero((best_bone == body_model.bone_names.index(s)) & (best > 0.5))
+            for s in ("breast.L", "breast.R")]
+    got = breast_regions(body_model)
+    assert all(g.size > 0 and np.array_equal(g, w) for g, w in zip(got, want))

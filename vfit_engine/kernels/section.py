@@ -48,7 +48,13 @@ def build_topology(tris):
     n_tri = tris.shape[0]
     half = np.stack([tris, np.roll(tris, -1, axis=1)], axis=2).reshape(-1, 2)
     half = np.sort(half, axis=1)
-    edges, inverse, counts = np.unique(half, axis=0, return_inverse=True, return_counts=True)
+    # unique rows through one int64 key a * span + b (same lexicographic order as np.unique(axis=0),
+    # which sorts a structured view and cost ~0.1 s on the body against ~5 ms for the keys)
+    lo = int(half.min()) if half.size else 0
+    span = int(half.max()) - lo + 1 if half.size else 1
+    keys, inverse, counts = np.unique((half[:, 0] - lo) * span + (half[:, 1] - lo), return_inverse=True,
+                                      return_counts=True)
+    edges = np.stack([keys // span + lo, keys % span + lo], axis=1)
     inverse = inverse.reshape(-1)
     tri_edges = inverse.reshape(n_tri, 3).astype(np.int64)
     edge_tris = np.full((edges.shape[0], 2), -1, dtype=np.int64)
