@@ -1,5 +1,6 @@
 """`vfit`, `vfit morph` and `vfit measure` through click's CliRunner: good runs and every class of bad input."""
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -222,3 +223,18 @@ def test_measure_rejects_nan_and_shuffled_topology(tmp_path, body_model):
     write_mesh(tmp_path / "shuffled.obj", mesh_from_faces(verts[:13380], perm[body_model.body_quads]))
     r = CliRunner().invoke(cli, ["measure", str(tmp_path / "shuffled.obj")])
     assert r.exit_code == 2
+
+
+def test_parallel_kernels_prefer_openmp_to_tbb():
+    """vfit_engine._jit puts OpenMP before TBB (a process that ran a parallel kernel from a worker thread can hang
+    at exit in TBB's finalize, numba/numba#10556) unless the user chose an order; the layer taken is not TBB where
+    another is there (OpenMP ships with Numba's wheels; workqueue always)."""
+    code = ("import os, threading\nos.environ.pop('NUMBA_THREADING_LAYER_PRIORITY', None)\n"
+            "import vfit_engine._jit, numba, numpy as np\n"
+            "f = numba.njit(parallel=True)(lambda a: np.sum(a * 2.0))\n"
+            "t = threading.Thread(target=f, args=(np.ones(1000),)); t.start(); t.join()\n"
+            "print(os.environ['NUMBA_THREADING_LAYER_PRIORITY'].split()[0], numba.threading_layer())")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_THREADING_LAYER")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env,
+                         timeout=120).stdout
+    assert out.split() in (["omp", "omp"], ["omp", "workqueue"])

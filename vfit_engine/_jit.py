@@ -21,6 +21,12 @@ import os
 import sys
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# OpenMP before TBB (Numba's own order is TBB first): with TBB present (a system libtbb, e.g. one that Blender's
+# package brings) a process that ran a parallel kernel from a worker thread -- the drape's set-up builds the body's
+# collider in a thread pool -- can hang for ever at exit in TBB's finalize (numba/numba#10556; seen here: `vfit
+# animate` wrote its report and then spun at 50 % CPU for 48 minutes in unload_tbb). The wait policy above is
+# OpenMP's too.
+os.environ.setdefault("NUMBA_THREADING_LAYER_PRIORITY", "omp workqueue tbb")
 
 
 import numba  # noqa: E402  (after the wait policy)
