@@ -67,14 +67,15 @@ first index), and its counts in ``counts``.
 The helpers take plain arrays: the entry kernel unpacks the argument tuples once, since Numba
 re-reads (and reference-counts) a tuple's arrays at every use inside a called function.
 Numba's cache watches only this file: after editing a helper it inlines from another module
-(:mod:`.springs`, :mod:`.integrate`, :mod:`.collide_mesh`), delete ``vfit_engine/kernels/__pycache__``.
+(:mod:`.springs`, :mod:`.integrate`, :mod:`.contact_make`, :mod:`.collide_mesh`), delete
+``vfit_engine/kernels/__pycache__``.
 """
 import math
 from collections import namedtuple
 
 from vfit_engine._jit import njit, prange
 from vfit_engine.kernels.bending import PASS_ALL, PASS_LIST, PASS_LISTED, _add_hinge_forces, _project_hinges
-from vfit_engine.kernels.collide_mesh import _query_point
+from vfit_engine.kernels.contact_make import _make_contacts, _point
 from vfit_engine.kernels.integrate import _advance_in_place, _move_pins
 from vfit_engine.kernels.springs import _add_spring_forces
 
@@ -99,9 +100,11 @@ ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", 
 #: vertex i is (i, i, i) with (1, 0, 0)); pt_skin (P,) m, the clearance each keeps; spheres (S, 4)
 #: float64: sphere colliders (centre, radius), m; p_seg (4,) int64: the points' segments; body_vel (V, 3)
 #: m/s: the velocity of the body grid's vertices (``grid.tris`` numbering) and sphere_vel (S, 3) m/s the
-#: spheres' (their centres'), during the substeps; both (0, 3) for a still body (nothing to carry).
+#: spheres' (their centres'), during the substeps; both (0, 3) for a still body (nothing to carry); body_sag
+#: (V,) m: the body's extra thickness at each grid vertex (its small bumps,
+#: :func:`vfit_engine.collide.sag.convex_sag`; (0,): none) and sag_max m its largest value.
 ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres", "p_seg", "body_vel",
-                                             "sphere_vel"])
+                                             "sphere_vel", "body_sag", "sag_max"])
 
 #: Per-point contact memory (in/out): p_last (P, 3) m and d_last (P,) m (position and a lower bound
 #: of the signed distance at the last query; ``-inf`` forces one), c_n (P, 3) and c_nq (P,) m (the
@@ -131,9 +134,6 @@ ACTIVE_BAND = 0.003
 #: Likewise a contact point more than this (m) clear of its half-space(s) after the first sweep is
 #: left to the last one (surface points between resting vertices mostly are).
 ACTIVE_GAP = 0.0005
-#: A new contact plane turned further than this (cosine, ~8 degrees) from an earlier one, towards the
-#: point, marks a crease (:func:`_keep_crease`).
-CREASE_COS = 0.99
 SYMMETRIC = False
 #: A vertex the contacts pushed out by more than this (m) in a substep is pressed into the body by its own
 #: cloth's tension (resting cloth is pushed ~g dt^2 = 0.04 mm): its constraints stay in the next substep's
@@ -142,171 +142,6 @@ SYMMETRIC = False
 #: next, they kept a period-6-substep cycle of the cloth round them that never settled (a top stretched
 #: 24-37 % over the bust of a body 8 cm wider than it was made for).
 PUSH_HOT = 0.0002
-
-
-@njit(inline="always")
-def _point(x, v, b, p):
-    """Position of contact point ``p``: sum_k b_k x_{v_k}."""
-    i0, i1, i2 = v[p, 0], v[p, 1], v[p, 2]
-    b0, b1, b2 = b[p, 0], b[p, 1], b[p, 2]
-    return (b0 * x[i0, 0] + b1 * x[i1, 0] + b2 * x[i2, 0],
-            b0 * x[i0, 1] + b1 * x[i1, 1] + b2 * x[i2, 1],
-            b0 * x[i0, 2] + b1 * x[i1, 2] + b2 * x[i2, 2])
-
-
-@njit
-def _sphere_query(px, py, pz, spheres):
-    """Signed distance to the nearest sphere's surface, its closest point, outward normal and index."""
-    best = math.inf
-    qx = qy = qz = nx = ny = nz = 0.0
-    best_s = -1
-    for s in range(spheres.shape[0]):
-        dx, dy, dz = px - spheres[s, 0], py - spheres[s, 1], pz - spheres[s, 2]
-        r = math.sqrt(dx * dx + dy * dy + dz * dz)
-        d = r - spheres[s, 3]
-        if d < best:
-            best = d
-            best_s = s
-            if r > 0.0:
-                nx, ny, nz = dx / r, dy / r, dz / r
-            else:
-                nx, ny, nz = 0.0, 1.0, 0.0
-            qx = spheres[s, 0] + spheres[s, 3] * nx
-            qy = spheres[s, 1] + spheres[s, 3] * ny
-            qz = spheres[s, 2] + spheres[s, 3] * nz
-    return best, qx, qy, qz, nx, ny, nz, best_s
-
-
-@njit(inline="always")
-def _velocity_on_triangle(grid, body_vel, t, qx, qy, qz):
-    """The body's velocity (m/s) at point q of grid triangle ``t``: its corners' velocities ``body_vel`` blended
-    by q's barycentric coordinates (Ericson 2005, 3.4; a degenerate triangle takes its first corner's)."""
-    rec = grid.tri_data
-    ax, ay, az = rec[t, 6], rec[t, 7], rec[t, 8]
-    e0x, e0y, e0z = rec[t, 9] - ax, rec[t, 10] - ay, rec[t, 11] - az
-    e1x, e1y, e1z = rec[t, 12] - ax, rec[t, 13] - ay, rec[t, 14] - az
-    e2x, e2y, e2z = qx - ax, qy - ay, qz - az
-    d00 = e0x * e0x + e0y * e0y + e0z * e0z
-    d01 = e0x * e1x + e0y * e1y + e0z * e1z
-    d11 = e1x * e1x + e1y * e1y + e1z * e1z
-    d20 = e2x * e0x + e2y * e0y + e2z * e0z
-    d21 = e2x * e1x + e2y * e1y + e2z * e1z
-    den = d00 * d11 - d01 * d01
-    bb = bc = 0.0
-    if den > 0.0:
-        bb = min(max((d11 * d20 - d01 * d21) / den, 0.0), 1.0)
-        bc = min(max((d00 * d21 - d01 * d20) / den, 0.0), 1.0 - bb)
-    ba = 1.0 - bb - bc
-    i0, i1, i2 = grid.tris[t, 0], grid.tris[t, 1], grid.tris[t, 2]
-    return (ba * body_vel[i0, 0] + bb * body_vel[i1, 0] + bc * body_vel[i2, 0],
-            ba * body_vel[i0, 1] + bb * body_vel[i1, 1] + bc * body_vel[i2, 1],
-            ba * body_vel[i0, 2] + bb * body_vel[i1, 2] + bc * body_vel[i2, 2])
-
-
-@njit
-def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_push, reuse,
-                   p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2, p0, p1, body_vel, sphere_vel, c_u):
-    """Contact half-spaces of the points ``p0 .. p1 - 1`` that may touch the body (step 3), listed in
-    ``c_list`` from index ``p0``; returns (contacts, queries). Given the body's velocities (``body_vel``,
-    ``sphere_vel``: not empty), a point queried afresh keeps the body's velocity at its closest point in ``c_u``.
-
-    In a crease (under the bust, the armpit) a point lies near two surfaces and its closest point
-    jumps from one to the other as it moves: a point whose new plane turned by more than
-    ``CREASE_COS`` from an earlier one, while still within reach of it, keeps that one as a second
-    half-space (``c_n2``, ``c_nq2``; ``c_nq2`` NaN when none; :func:`_keep_crease`) and must satisfy
-    both, instead of being pushed to and fro between them."""
-    queries = 0
-    n_c = 0
-    for p in range(p0, p1):
-        free = 0.0
-        for k in range(3):
-            if inv_mass[v[p, k]] > 0.0:
-                free += b[p, k]
-        if free < 0.5:
-            continue  # (mostly) pinned: moving the few free vertices would lever them far
-        px, py, pz = _point(x, v, b, p)
-        mx, my, mz = px - p_last[p, 0], py - p_last[p, 1], pz - p_last[p, 2]
-        moved = math.sqrt(mx * mx + my * my + mz * mz)
-        band = skin[p] + reach
-        if d_last[p] - moved >= band:
-            continue
-        if moved < reuse and -math.inf < d_last[p] < band:
-            # the last query's plane still holds (module docstring)
-            d = c_n[p, 0] * px + c_n[p, 1] * py + c_n[p, 2] * pz - c_nq[p]
-            c_h[p] = c_nq[p] + min(skin[p], d + max_push)
-            if c_nq2[p] == c_nq2[p]:
-                d2 = c_n2[p, 0] * px + c_n2[p, 1] * py + c_n2[p, 2] * pz - c_nq2[p]
-                c_h2[p] = c_nq2[p] + min(skin[p], d2 + max_push)
-            c_list[p0 + n_c] = p
-            n_c += 1
-            continue
-        was_contact = -math.inf < d_last[p] < band
-        query_out = band + 4.0 * reach  # a looser band makes the clear-distance bound last longer
-        d = query_out
-        qx = qy = qz = nx = ny = nz = 0.0
-        ux = uy = uz = 0.0
-        if use_grid:
-            dg, gqx, gqy, gqz, gnx, gny, gnz, t = _query_point(px, py, pz, grid, True, query_out, math.inf)
-            if t >= 0:
-                d, qx, qy, qz, nx, ny, nz = dg, gqx, gqy, gqz, gnx, gny, gnz
-                if body_vel.shape[0] > 0:
-                    ux, uy, uz = _velocity_on_triangle(grid, body_vel, t, qx, qy, qz)
-        if spheres.shape[0] > 0:
-            ds, sqx, sqy, sqz, snx, sny, snz, s = _sphere_query(px, py, pz, spheres)
-            if ds < d:
-                d, qx, qy, qz, nx, ny, nz = ds, sqx, sqy, sqz, snx, sny, snz
-                if sphere_vel.shape[0] > 0:
-                    ux, uy, uz = sphere_vel[s, 0], sphere_vel[s, 1], sphere_vel[s, 2]
-        if c_u.shape[0] > 0:
-            c_u[p, 0], c_u[p, 1], c_u[p, 2] = ux, uy, uz
-        queries += 1
-        p_last[p, 0], p_last[p, 1], p_last[p, 2] = px, py, pz
-        if not d < band:
-            d_last[p] = min(d, query_out)
-            continue
-        d_last[p] = d
-        _keep_crease(p, px, py, pz, qx, qy, qz, nx, ny, nz, was_contact, band, skin[p], max_push, c_n, c_nq, c_n2, c_nq2, c_h2)
-        c_n[p, 0], c_n[p, 1], c_n[p, 2] = nx, ny, nz
-        c_nq[p] = nx * qx + ny * qy + nz * qz
-        c_h[p] = c_nq[p] + min(skin[p], d + max_push)
-        c_list[p0 + n_c] = p
-        n_c += 1
-    return n_c, queries
-
-
-@njit(inline="always")
-def _keep_crease(p, px, py, pz, qx, qy, qz, nx, ny, nz, was_contact, band, skin, max_push, c_n, c_nq, c_n2, c_nq2, c_h2):
-    """The second half-space of point ``p`` whose new plane through ``q`` is ``n`` (before ``c_n`` is
-    overwritten): of its previous planes (the first, and the second if any), the nearest one within
-    ``band`` that is turned from ``n`` by more than ``CREASE_COS`` and has ``q`` on its outer side;
-    else none (``c_nq2`` NaN).
-
-    ``q`` above an earlier tangent plane means the surface turned up towards the point: a crease,
-    where the earlier plane lies inside the body and both must hold. On a ridge ``q`` lies below it
-    and the earlier plane, outside the body, would hold the cloth off the skin: it is dropped. The
-    second plane is kept while it holds, not only on the query that turned, so a point in a crease
-    never alternates between one plane and two."""
-    best = band
-    bx = by = bz = bq = 0.0
-    if was_contact:
-        for k in range(2):
-            if k == 0:
-                mx, my, mz, mq = c_n[p, 0], c_n[p, 1], c_n[p, 2], c_nq[p]
-            else:
-                mx, my, mz, mq = c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_nq2[p]
-                if mq != mq:
-                    continue
-            if nx * mx + ny * my + nz * mz >= CREASE_COS or mx * qx + my * qy + mz * qz - mq <= 0.0:
-                continue  # the same plane, or a ridge (the new closest point below the old plane)
-            dm = mx * px + my * py + mz * pz - mq
-            if dm < best:
-                best, bx, by, bz, bq = dm, mx, my, mz, mq
-    if best < band:
-        c_n2[p, 0], c_n2[p, 1], c_n2[p, 2] = bx, by, bz
-        c_nq2[p] = bq
-        c_h2[p] = bq + min(skin, best + max_push)
-    else:
-        c_nq2[p] = math.nan
 
 
 @njit(inline="always")
@@ -607,4 +442,4 @@ def _contacts_of_segment(x, w, pts, grid, prm, st, g):
     st.counts[g, 0], st.counts[g, 3] = _make_contacts(
         x, w, pts.pt_v, pts.pt_b, pts.pt_skin, pts.spheres, grid, prm.use_grid, prm.reach, prm.max_push, prm.reuse,
         st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2, st.c_h2, pts.p_seg[g],
-        pts.p_seg[g + 1], pts.body_vel, pts.sphere_vel, st.c_u)
+        pts.p_seg[g + 1], pts.body_vel, pts.sphere_vel, st.c_u, pts.body_sag, pts.sag_max)

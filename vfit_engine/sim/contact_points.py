@@ -35,11 +35,14 @@ class ContactPointSet:
         Weights, summing to 1 (a cloth vertex: ``(1, 0, 0)``).
     vertex_count : int
         The first ``vertex_count`` points are the cloth's vertices, in order.
+    spacing : float, m
+        The largest distance between neighbouring points of the triangles' lattices (0: the vertices only).
     """
 
     verts: np.ndarray
     bary: np.ndarray
     vertex_count: int
+    spacing: float = 0.0
 
     @property
     def count(self):
@@ -72,7 +75,8 @@ def contact_points(face_verts, face_offsets, rest_pos, spacing=0.015, surface=Tr
     n = pos.shape[0]
     verts = [np.repeat(np.arange(n, dtype=np.int64)[:, None], 3, axis=1)]
     bary = [np.tile([1.0, 0.0, 0.0], (n, 1))]
-    if surface and len(face_offsets) > 1:
+    surface = bool(surface and len(face_offsets) > 1)
+    if surface:
         from vfit_engine.io.mesh import MeshData
 
         tris = MeshData(pos, np.asarray(face_offsets, np.int64), np.asarray(face_verts, np.int64)).triangles()
@@ -86,7 +90,8 @@ def contact_points(face_verts, face_offsets, rest_pos, spacing=0.015, surface=Tr
         verts.append(v)
         bary.append(b)
     return ContactPointSet(np.ascontiguousarray(np.concatenate(verts), dtype=np.int64),
-                           np.ascontiguousarray(np.concatenate(bary), dtype=np.float64), n)
+                           np.ascontiguousarray(np.concatenate(bary), dtype=np.float64), n,
+                           float(spacing) if surface else 0.0)
 
 
 def _edge_points(tris, pos, spacing):

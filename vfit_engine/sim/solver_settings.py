@@ -109,6 +109,11 @@ class ContactSettings:
         1/480 s substeps). Off by default: the still drape's cloth settles hanging from its pins, held by
         tension, not friction; and in an animation it also holds cloth that a moving body stretched as
         stretched as it is (:class:`vfit_engine.animate.loop.AnimateSettings`).
+    sag : bool
+        The body counts as thicker at its small bumps (nipples, knuckles, fingertips: convex in every
+        direction) by as much as they rise between the contact points (:mod:`vfit_engine.collide.sag`), so a
+        taut cloth resting on points round a bump does not cut into its tip. Needs the surface contact points
+        (their spacing).
     """
 
     skin: float = 0.002
@@ -118,3 +123,4 @@ class ContactSettings:
     damping: float = 0.0
     reuse: float = 0.0005
     stick: bool = False
+    sag: bool = True

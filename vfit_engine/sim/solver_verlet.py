@@ -172,6 +172,20 @@ class SolverVerlet:
         # a still body: no velocities (body_moved gives them, and the scratch to carry the cloth with them)
         self._body_vel, self._sphere_vel = np.zeros((0, 3)), np.zeros((0, 3))
         self._c_u, self._push_u, self._push_w = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
+        self._body_sag = self._sag_of(body)
+        self._sag_max = float(self._body_sag.max(initial=0.0))
+
+    def _sag_of(self, body):
+        """(V,) m: the body's extra thickness at its small bumps (``ContactSettings.sag``), from the body as it
+        is now (a moving body's keeps it: its bumps move with it, their shapes barely change); (0,): none."""
+        if body is None or not self.contact.sag or not self.points.spacing > 0:
+            return np.zeros(0)
+        from vfit_engine.collide.sag import SAG_TOLERANCE, convex_sag
+
+        # the farthest a body point lies from the nearest point of the lattice; the points' own clearance
+        # covers the rise up to it, and SAG_TOLERANCE more is left to cut in at worst
+        return convex_sag(body.verts, body.tris, self.points.spacing / math.sqrt(3.0),
+                          self.contact.surface_skin + SAG_TOLERANCE)
 
     def sweep_from(self, vertices):
         """Sweep the constraints outward from ``vertices`` (by graph distance, nearest first).
@@ -478,7 +492,7 @@ class SolverVerlet:
                          float(self.max_push), 1.0 - math.exp(-float(c.damping) * dt), float(c.reuse),
                          self.body is not None, int(self.settings.hinge_every), bool(c.stick))
         pts = ContactPoints(self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._p_seg, self._body_vel,
-                            self._sphere_vel)
+                            self._sphere_vel, self._body_sag, self._sag_max)
         cst = ContactState(self._p_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_list, self._push,
                            self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2, self._c_live,
                            self._counts, self._hot, self._h_lam, self._h_active, self._c_u, self._push_u,
