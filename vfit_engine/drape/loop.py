@@ -66,10 +66,13 @@ class DrapeResult:
         :func:`vfit_engine.drape.metrics.drape_metrics`.
     info : dict
         Solver figures: ``untangle``, ``contact_points``, ``contact_queries``, ``softened_fraction``,
+        ``refine`` (levels) and ``simulated_vertices``,
         ``implicit_hinges`` (the share of hinges too stiff for the explicit step, solved as constraints),
         ``softened_hinges`` (the share softened to the step's stability bound: round openings the body forces
         wider) and ``bending_kept`` (the share of the material's bending stiffness the drape carries: below 1
         the cloth bends more easily than the fabric there).
+    fine : MeshData or None
+        With ``DrapeSettings.refine``: the simulated (subdivided) cloth as it settled.
     """
 
     pos: np.ndarray
@@ -82,18 +85,25 @@ class DrapeResult:
     settle: dict
     metrics: dict
     info: dict = field(default_factory=dict)
+    fine: object = None
 
 
-def build_solver(setup, settings):
-    """The cloth model and solver of a drape (step 1)."""
+def build_solver(setup, settings, garment=None):
+    """The cloth model and solver of a drape (step 1). ``garment``: the setup of the garment as given when
+    ``setup`` is its subdivided cloth (:mod:`vfit_engine.drape.refine`): the garment's own polygons, flat
+    between its vertices, are held out of the body too (the drape is read back on them)."""
     from vfit_engine.sim.contact_points import contact_points
     from vfit_engine.sim.model import Model
     from vfit_engine.sim.solver_verlet import SolverVerlet
 
     fv, fo = setup.garment.mesh.face_verts, setup.garment.mesh.face_offsets
     model = Model.from_polygons(fv, fo, setup.rest, setup.material, pin_indices=setup.pins.indices)
-    points = contact_points(fv, fo, setup.rest, spacing=settings.surface_spacing,
-                            surface=settings.surface_spacing > 0)
+    surface = settings.surface_spacing > 0
+    points = contact_points(fv, fo, setup.rest, spacing=settings.surface_spacing, surface=surface)
+    if garment is not None and surface:
+        g = garment.garment.mesh
+        points = points.joined(contact_points(g.face_verts, g.face_offsets, garment.rest,
+                                              spacing=settings.surface_spacing))
     exact = setup.collider_kind == "mesh"
     solver = SolverVerlet(model, settings.solver, settings.contact, body=setup.collider if exact else None,
                           spheres=setup.spheres, points=points,
@@ -198,14 +208,18 @@ def run_drape(setup, settings=None, on_frame=None):
 
     st = settings or DrapeSettings()
     t0 = time.perf_counter()
-    model, solver = build_solver(setup, st)
-    start, untangle_info = _untangled_start(setup, st, model)
+    sim, n = setup, setup.garment.mesh.n_verts  # sim: the cloth simulated; its first n vertices are the garment's
+    if st.refine:
+        from vfit_engine.drape.refine import refine_setup
+
+        sim, _ = refine_setup(setup, st.refine)
+    model, solver = build_solver(sim, st, garment=setup if st.refine else None)
+    start, untangle_info = _untangled_start(sim, st, model)
     frame_dt = 1.0 / st.fps
     state = solver.init_state(frame_dt / st.solver.substeps, pos=start)
-    n = model.particle_count
-    pin_from, pin_to = start[setup.pins.indices].copy(), setup.pins.targets
+    pin_from, pin_to = start[sim.pins.indices].copy(), sim.pins.targets
     pin_now = pin_from.copy()
-    settle = _SettleTest(st, n, start)
+    settle = _SettleTest(st, model.particle_count, start)
     last_good = start.copy()
     setup_time = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -227,19 +241,21 @@ def run_drape(setup, settings=None, on_frame=None):
         if not (math.isfinite(speed) and speed <= st.diverge_speed):
             what = "NaN/infinite positions" if not math.isfinite(speed) else f"a vertex at {speed:.3g} m/s"
             raise DrapeDiverged(f"simulation diverged at frame {frame} ({what}); last good frame {frame - 1}",
-                                frame=frame, last_good=last_good.copy(), last_good_frame=frame - 1)
+                                frame=frame, last_good=last_good[:n].copy(), last_good_frame=frame - 1)
         np.copyto(last_good, state.pos)
         settled = settle.frame(state.pos, frame >= ramp)
         if on_frame is not None:
-            on_frame(frame, state.pos, settle.share)
+            on_frame(frame, state.pos[:n], settle.share)
         if settled:
             converged = True
             break
     wall = time.perf_counter() - t0
-    pos = state.pos.copy()
-    info = dict(untangle=untangle_info, contact_points=solver.points.count, contact_queries=int(solver.contact_queries),
+    pos = state.pos[:n].copy()
+    info = dict(refine=int(st.refine), simulated_vertices=int(model.particle_count),
+                untangle=untangle_info, contact_points=solver.points.count, contact_queries=int(solver.contact_queries),
                 softened_fraction=solver.softened_fraction, implicit_hinges=round(solver.implicit_hinges, 4),
                 softened_hinges=round(solver.softened_hinges, 4),
                 bending_kept=round(solver.bending_kept, 4), constraints=int(solver.constraint_count))
     return DrapeResult(pos, converged, frame, int(state.step_count), float(state.time), wall, setup_time,
-                       settle.figures(), drape_metrics(setup, pos), info)
+                       settle.figures(), drape_metrics(setup, pos), info,
+                       sim.garment.mesh.with_verts(state.pos) if st.refine else None)

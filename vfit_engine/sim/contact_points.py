@@ -48,6 +48,13 @@ class ContactPointSet:
     def count(self):
         return int(self.verts.shape[0])
 
+    def joined(self, other):
+        """This set with ``other``'s points other than its vertices appended (``other``: points over other
+        polygons on the same vertex numbering, e.g. the garment's own over a subdivided cloth)."""
+        return ContactPointSet(np.concatenate([self.verts, other.verts[other.vertex_count:]]),
+                               np.concatenate([self.bary, other.bary[other.vertex_count:]]), self.vertex_count,
+                               max(self.spacing, other.spacing))
+
     def positions(self, pos):
         """(P, 3) float64: the points' positions on cloth positions ``pos`` (n, 3)."""
         return np.einsum("pk,pkd->pd", self.bary, np.asarray(pos, dtype=np.float64)[self.verts])
