@@ -17,8 +17,9 @@ COLLIDERS = ("mesh", "spheres", "bone-spheres", "ellipsoids", "hulls")
 MORPH_OPTIONS = ("gender", "height", "weight") + _morph.GIRTH_OPTIONS + ("definition",)
 #: Files a drape writes into OUTDIR (removed before a new run writes there, so none is left from an
 #: earlier one).
-OUTPUT_GLOBS = ("final.obj", "final.ply", "final.glb", "final_fine.*", "body.obj", "body.ply", "body.glb", "report.json", "preview.png",
-                "fit.ply", "scene.glb", "drape.gif", "frame_*.obj", "frame_*.ply", "frame_*.glb")
+OUTPUT_GLOBS = ("final.obj", "final.ply", "final.glb", "final_fine.*", "body.obj", "body.ply", "body.glb",
+                "report.json", "preview.png", "fit.ply", "scene.glb", "drape.gif", "frame_*.obj", "frame_*.ply",
+                "frame_*.glb")
 #: Fit maps a picture can show (``vfit_engine.fit.outputs.PICTURE_MAPS``).
 MAPS = ("strain", "ease", "pressure")
 #: An unpinned garment that did not settle and whose mean height fell by more than this (m) slid down the

@@ -104,4 +104,3 @@ def _all_parents(weights, flag):
     parents = weights.copy()
     parents.data[:] = 1.0
     return np.asarray(parents @ (~flag).astype(np.float64)) == 0.0
-
