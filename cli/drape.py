@@ -90,7 +90,7 @@ def body_targets(body_path, girths, height, weight):
 @click.option("--refine", type=click.IntRange(0, 2), default=0, show_default=True,
               help="Simulate the cloth subdivided N times (each polygon into quads) and read the garment's own "
                    "vertices back from it: folds narrower than its polygons (silk on a coarse skirt); each level "
-                   "costs ~4-8x the time. Also writes OUTDIR/final_fine.obj, the subdivided cloth.")
+                   "costs ~3-5x the time. Also writes OUTDIR/final_fine.obj, the subdivided cloth.")
 @click.option("--every", type=click.IntRange(0, 100000), default=10, show_default=True,
               help="Write frame_NNNN every K frames, frame_0000 being the start (0: none).")
 @click.option("--format", "fmt", type=click.Choice(["obj", "ply", "glb"]), default="obj", show_default=True,

@@ -19,7 +19,7 @@ import dataclasses
 
 import numpy as np
 
-#: Most levels (each multiplies the polygons by ~4 and the time by ~4-8).
+#: Most levels (each multiplies the polygons by ~4 and the time by ~3-5: 2.3-3.7 per frame, and more frames to settle).
 MAX_LEVELS = 2
 
 

@@ -71,7 +71,7 @@ class DrapeSettings:
     refine : int
         Simulate the cloth subdivided this many times (each polygon into quads round its centroid) and read the
         garment's own vertices back from it (:mod:`vfit_engine.drape.refine`): folds narrower than the
-        garment's polygons (silk on a coarse skirt), at ~4-8 times the time per level; 0: the garment's mesh.
+        garment's polygons (silk on a coarse skirt), at ~3-5 times the time per level; 0: the garment's mesh.
     """
 
     fps: float = 60.0
