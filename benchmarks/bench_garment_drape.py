@@ -25,30 +25,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
 
 
-def subdivide_quads(mesh):
-    """Midpoint subdivision of an all-quad MeshData (positions only; UVs dropped)."""
-    from vfit_engine.io.mesh import mesh_from_faces
-
-    q = mesh.quads_or_none()
-    if q is None:
-        raise SystemExit("benchmark garment must be all quads")
-    v = mesh.verts
-    edges = np.sort(np.stack([q, np.roll(q, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    uniq, inv = np.unique(edges, axis=0, return_inverse=True)
-    inv = inv.reshape(-1, 4)
-    n, ne = v.shape[0], uniq.shape[0]
-    verts = np.concatenate([v, 0.5 * (v[uniq[:, 0]] + v[uniq[:, 1]]), v[q].mean(axis=1)])
-    e = n + inv  # edge k of quad joins corner k and k+1
-    c = n + ne + np.arange(q.shape[0])
-    faces = np.concatenate([np.stack([q[:, k], e[:, k], c, e[:, (k - 1) % 4]], axis=1) for k in range(4)])
-    return mesh_from_faces(verts, faces)
-
-
 def subdivided_garment(g):
-    """The Garment ``g`` after one midpoint subdivision (metres, no binding: it sits where ``g`` does)."""
+    """The Garment ``g`` after one midpoint subdivision (metres, no binding: it sits where ``g`` does; the
+    subdivision ``vfit drape --refine`` simulates, UVs dropped)."""
+    from vfit_engine.drape.refine import subdivide
     from vfit_engine.garment.garment import Garment, piece_labels
 
-    mesh = subdivide_quads(g.mesh)
+    mesh = subdivide(g.mesh)[0]
     return Garment(mesh, "m", g.source.with_name(g.source.stem + "_subdivided.obj"),
                    pieces=piece_labels(mesh.n_verts, mesh.edges()))
 
