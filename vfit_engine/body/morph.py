@@ -159,7 +159,7 @@ class Morpher:
             # the waist band (hips line to underbust line) and the hips band (hips line +-4 cm) share the
             # hips line's plane, so the smallest girth of one is at most the largest of the other on every
             # body. Surveys tape a man's waist at the iliac crest (NHANES), over the belly: there it can be
-            # the larger (NHANES 2017-2018's men of the 99th percentile of bust or waist)
+            # the larger. (The estimates keep waist <= hips: PopulationModel.predict.)
             refused.append(f"waist {targets['waist'] * 100:.1f} cm is more than hips {targets['hips'] * 100:.1f} "
                            "cm: the waist is the narrowest girth from the hips line up, the hips the largest "
                            "within 4 cm of it, so no body's waist exceeds its hips")

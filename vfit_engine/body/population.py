@@ -221,27 +221,63 @@ class PopulationModel:
             out.mu[i] = np.log(values[k]) - beta @ (y_hm - self.mu[hm])
         return out
 
-    def predict(self, given: dict) -> tuple[dict, dict]:
+    def predict(self, given: dict, tape: bool = True) -> tuple[dict, dict]:
         """Conditional median and log standard deviation of every variable not in ``given``.
 
+        With ``tape`` (the default) the waist and hips not given are those of the bodies whose waist is at most
+        their hips (:meth:`_within_tape`): the tape's waist is the narrowest girth from the hips line up and its
+        hips the largest within 4 cm of that line, so no body measures a waist above its hips, while the survey's
+        log-normal model, fitted over all bodies, predicts one for the heaviest men.
+
         Returns (median dict name -> value, sd dict name -> standard deviation of the log, i.e. the
-        regression's relative standard error).
+        regression's relative standard error; without the truncation).
         """
         g = [k for k in VARIABLES if k in given]
         o = [k for k in VARIABLES if k not in given]
         if not o:
             return {}, {}
         ig, io = self._index(g), self._index(o)
-        if not g:
-            return ({k: float(np.exp(self.mu[i])) for k, i in zip(o, io)},
-                    {k: float(self.sd[i]) for k, i in zip(o, io)})
-        y = np.log([given[k] for k in g])
-        S_gg = self.cov[np.ix_(ig, ig)]
-        B = np.linalg.solve(S_gg, self.cov[np.ix_(ig, io)])  # (g, o)
-        mean = self.mu[io] + (y - self.mu[ig]) @ B
-        var = np.diag(self.cov[np.ix_(io, io)] - self.cov[np.ix_(io, ig)] @ B)
+        if g:
+            y = np.log([given[k] for k in g])
+            S_gg = self.cov[np.ix_(ig, ig)]
+            B = np.linalg.solve(S_gg, self.cov[np.ix_(ig, io)])  # (g, o)
+            mean = self.mu[io] + (y - self.mu[ig]) @ B
+            cov = self.cov[np.ix_(io, io)] - self.cov[np.ix_(io, ig)] @ B
+        else:
+            mean, cov = self.mu[io].copy(), self.cov[np.ix_(io, io)]
+        if tape:
+            mean = self._within_tape(mean, cov, o, given)
         return ({k: float(np.exp(m)) for k, m in zip(o, mean)},
-                {k: float(np.sqrt(max(v, 0.0))) for k, v in zip(o, var)})
+                {k: float(np.sqrt(max(v, 0.0))) for k, v in zip(o, np.diag(cov))})
+
+    @staticmethod
+    def _within_tape(mean, cov, names, given):
+        """``mean`` (the unknowns' conditional mean of logs, in ``names`` order) given also that the waist is at
+        most the hips: the Gaussian truncated to d = log waist - log hips <= 0. Its mean moves by
+        ``cov(u, d) / var(d) * (E[d | d <= 0] - E[d])`` with ``E[d | d <= 0] = mu - s phi(a) / Phi(a)``,
+        ``a = -mu / s`` (the truncated normal). Unchanged when both are given or the constraint barely binds."""
+        c = np.zeros(len(names))  # d = c . y_unknown + d0
+        d0 = 0.0
+        for name, sign in (("waist", 1.0), ("hips", -1.0)):
+            if name in names:
+                c[names.index(name)] = sign
+            elif name in given:
+                d0 += sign * float(np.log(given[name]))
+            else:
+                return mean
+        if not c.any():
+            return mean
+        mu, cov_ud = float(c @ mean) + d0, cov @ c
+        s = float(np.sqrt(max(c @ cov_ud, 0.0)))
+        if s <= 0.0:
+            return mean
+        a = -mu / s
+        phi, big_phi = np.exp(-0.5 * a * a) / sqrt(2.0 * np.pi), 0.5 * (1.0 + erf(a / sqrt(2.0)))
+        if big_phi <= 1e-300:  # the whole distribution beyond the bound: its mean at the bound
+            shift = -mu
+        else:
+            shift = -s * phi / big_phi
+        return mean + cov_ud / (s * s) * shift
 
     def assess(self, given: dict) -> Assessment:
         """z scores of the given values: marginal, and each given the other given values."""
@@ -252,7 +288,7 @@ class PopulationModel:
             marg[k] = float((np.log(given[k]) - self.mu[i]) / self.sd[i])
             others = {j: given[j] for j in names if j != k}
             if others:
-                med, sd = self.predict(others)
+                med, sd = self.predict(others, tape=False)  # the survey's own percentiles
                 cond[k] = float(np.log(given[k] / med[k]) / sd[k])
         return Assessment(marg, cond, self.who)
 
