@@ -187,6 +187,24 @@ def drape_check(outdir, model, setup, pos, garment_path, scale):
     return json.loads(run.stdout.strip().splitlines()[-1])
 
 
+def with_settings(settings, assignments):
+    """``settings`` (DrapeSettings) with each ``NAME=VALUE`` of ``assignments`` set (``--set``); the value is
+    converted to the type of the field it replaces."""
+    from dataclasses import replace
+
+    for text in assignments:
+        name, _, value = text.partition("=")
+        group, _, field = name.rpartition(".")
+        holder = getattr(settings, group) if group else settings
+        if not value or not hasattr(holder, field):
+            raise SystemExit(f"--set {text}: no drape setting {name!r} (DrapeSettings, solver.*, contact.*)")
+        old = getattr(holder, field)
+        new = (value.lower() in ("1", "true", "yes")) if isinstance(old, bool) else type(old)(value)
+        holder = replace(holder, **{field: new})
+        settings = replace(settings, **{group: holder}) if group else holder
+    return settings
+
+
 def _json_default(value):
     """numpy scalars and arrays for json.dumps."""
     if hasattr(value, "tolist"):
@@ -213,6 +231,9 @@ def main(argv=None):
                     help="write each case's body.obj, final.obj and report.json here (with --check: default a "
                          "temporary directory)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="a drape setting other than the product's, to try one: a DrapeSettings field (ramp_frames=20) "
+                         "or solver.FIELD / contact.FIELD (solver.substeps=4); repeatable")
     args = ap.parse_args(_attach_value(sys.argv[1:] if argv is None else list(argv), "--deltas"))
     if not GARMENTS.is_dir():
         print("../shared not present", file=sys.stderr)
@@ -242,7 +263,8 @@ def main(argv=None):
     model = BodyModel.load()
     measurer = Measurer(model)
     names = args.garment or sorted(p.name for p in GARMENTS.iterdir() if p.is_dir())
-    settings = DrapeSettings() if args.frames is None else DrapeSettings(max_frames=args.frames)
+    settings = with_settings(DrapeSettings() if args.frames is None else DrapeSettings(max_frames=args.frames),
+                             args.set)
     say = (lambda *a, **k: None) if args.json else print
     if args.out is not None:
         say(f"writing cases to {args.out}")
