@@ -29,13 +29,17 @@ def girth_option(name, help_text):
 @click.option("--definition", type=click.Choice(["iso", "makehuman", "spline"]), default="iso", show_default=True,
               help="How girths are measured: iso = horizontal tape (convex hull of the torso section), "
                    "makehuman = MakeHuman's rulers, spline = profile curve through the section.")
+@click.option("--search-time", "search_time", type=click.FloatRange(0.0, 600.0), default=1.6, show_default=True,
+              help="Seconds after the solve starts by which targets that cannot be met have had the ranges "
+                   "reachable with the others searched (a failure then answers within ~3 s); a range cut short "
+                   "says so: give more to get it.")
 @click.option("-o", "--output", default="body.obj", show_default=True, type=click.Path(dir_okay=False),
               help="Body mesh to write: .obj (with UVs) or .ply; metres, Y up, hm08 vertex order.")
 @click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),
               help="Also write the figures as JSON.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only where the body was written.")
 @handle_errors
-def morph(gender, height, weight, definition, output, json_path, quiet, **girths):
+def morph(gender, height, weight, definition, search_time, output, json_path, quiet, **girths):
     """Build a body with exactly the given measurements (each met to 1 mm).
 
     Starts from MakeHuman's young-adult average body of the chosen gender and
@@ -66,7 +70,7 @@ def morph(gender, height, weight, definition, output, json_path, quiet, **girths
     from vfit_engine.body.morph import Morpher
 
     morpher = Morpher()
-    res = morpher.solve(targets, gender=gender, definition=definition, weight_kg=weight)
+    res = morpher.solve(targets, gender=gender, definition=definition, weight_kg=weight, search_seconds=search_time)
     gender_text = gender if isinstance(gender, str) else f"{gender:g} (0 female, 1 male)"
     header = [f"vfit morph: {gender_text} body, definition {definition}, units metres, Y up",
               "targets (cm/kg): " + ", ".join(f"{k}={v * 100:g}" for k, v in targets.items())

@@ -109,6 +109,7 @@ def test_morph_default_output_and_ply(tmp_path, monkeypatch):
     (["--gender", "robot"], "not female, male"),
     (["--frobnicate", "3"], "No such option"),
     (["--definition", "tailor"], "Invalid value"),
+    (["--search-time", "-1"], "Invalid value for '--search-time'"),
 ])
 def test_morph_usage_errors(tmp_path, args, needle):
     out = tmp_path / "x.obj"
@@ -121,6 +122,8 @@ def test_morph_usage_errors(tmp_path, args, needle):
 @pytest.mark.parametrize("args,needle", [
     (["--waist", "20"], "refused: waist is 8.5 standard deviations below"),
     (["--bust", "70", "--underbust", "90"], "cannot be met together: bust 70.0 cm ("),
+    (["--bust", "70", "--underbust", "90", "--search-time", "0"],
+     "bust 70.0 cm (range not searched in the time limit: --search-time to search longer, got"),
     (["--weight", "400", "--height", "150"], "refused: mass is 6.4 standard deviations above"),
 ])
 def test_morph_unreachable(tmp_path, args, needle):

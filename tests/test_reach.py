@@ -204,17 +204,32 @@ def test_heaviest_men_of_the_population_build(morpher, body_model, breasts, name
     assert inverted_faces(verts, ref, body_model.body_tris) <= inverted_faces(corner, ref, body_model.body_tris) + 12
 
 
-def test_error_range_ends_are_reachable(morpher, monkeypatch):
+def test_error_range_ends_are_reachable(morpher):
     """bust 70 with underbust 90 cannot be met; the bust range given the underbust is printed, and
     both its ends are then built. (The range search's time limit is lifted: this machine's load must
     not decide whether the range is printed; bench_morph times the failure.)"""
-    import vfit_engine.body.morph as morph
-
-    monkeypatch.setattr(morph, "RANGE_SEARCH_UNTIL", 60.0)
     with pytest.raises(InputError, match="cannot be met together") as err:
-        morpher.solve({"bust": 0.70, "underbust": 0.90})
+        morpher.solve({"bust": 0.70, "underbust": 0.90}, search_seconds=60.0)
     lo, hi = map(float, re.search(r"bust 70\.0 cm \(reachable (\d+\.\d)-(\d+\.\d) cm", str(err.value)).groups())
     assert hi - lo > 5.0
     for end in (lo, hi):
         res = morpher.solve({"bust": end / 100, "underbust": 0.90})
         assert abs(res.measurement.values["bust"] - end / 100) <= MM
+
+
+def test_range_search_keeps_its_time_limit(morpher):
+    """A failure's range searches end by their deadline: none begins after it, and one running then is cut
+    (``OutOfTime``) and named as not searched, with the option that searches longer. Without a target the
+    others may be refused (no body has them): that target gets no range, and the error stays the failure's."""
+    from vfit_engine.body.morph import OutOfTime
+
+    with pytest.raises(InputError, match=r"bust 70\.0 cm \(range not searched in the time limit: --search-time"):
+        morpher.solve({"bust": 0.70, "underbust": 0.90}, search_seconds=0.0)
+    with pytest.raises(OutOfTime):
+        morpher.reachable("bust", {"bust": 0.70, "underbust": 0.90}, 0.0, deadline=0.0)
+    targets = {"waist": 0.90, "hips": 0.95, "bust": 1.30, "underbust": 0.70}
+    with pytest.raises(InputError, match="cannot be met together") as err:
+        morpher.solve(targets, search_seconds=60.0)
+    text = str(err.value)
+    assert "waist 90.0 cm (no range: without it the other targets are outside the population" in text
+    assert re.search(r"underbust 70\.0 cm \(reachable 10\d\.\d-10\d\.\d cm", text), text

@@ -74,6 +74,10 @@ def build_sliders(b: float) -> tuple[float, float]:
     return 0.5, 0.5 + 0.5 * b
 
 
+class OutOfTime(Exception):
+    """A reach search ran past its deadline (``Morpher.reachable``): a failure answers within its time."""
+
+
 class Morpher:
     """Builds bodies to measurements. Create once: it loads the model and caches dense targets."""
 
@@ -182,7 +186,8 @@ class Morpher:
         hard = set(targets) | ({"mass"} if weight_kg is not None else set())
         return Plan(goals, mass, hard, estimated, assessment.warnings(), start)
 
-    def solve(self, targets: dict, gender="female", definition="iso", weight_kg=None) -> MorphResult:
+    def solve(self, targets: dict, gender="female", definition="iso", weight_kg=None,
+              search_seconds=None) -> MorphResult:
         """Build a body meeting ``targets``; what is not given follows the population (``population.py``).
 
         Parameters
@@ -193,6 +198,9 @@ class Morpher:
         definition : 'iso' | 'makehuman' | 'spline'
         weight_kg : float, optional
             Body mass to meet through volume x density.
+        search_seconds : float, optional
+            A failure's search for the ranges reachable ends this long after the solve starts (default
+            :data:`RANGE_SEARCH_UNTIL`: a failure answers within ~3 s); a range cut short says so.
 
         Raises
         ------
@@ -217,7 +225,8 @@ class Morpher:
         h, b = self._semantic(g, plan.goals["height"], plan.mass, definition)
         x, meas, iterations = self._fit_all(g, h, b, plan, definition)
         out = self._result(g, x, meas, plan, targets, weight_kg, iterations)
-        self._check(out, definition, g, deadline=t0 + RANGE_SEARCH_UNTIL)
+        limit = RANGE_SEARCH_UNTIL if search_seconds is None else float(search_seconds)
+        self._check(out, definition, g, deadline=t0 + limit, x=x)
         return out
 
     def _semantic(self, g, height, mass, definition):
@@ -233,14 +242,14 @@ class Morpher:
                              np.zeros(2), None)
         return float(p[0]), float(p[1])
 
-    def _fit_all(self, g, h, b, plan, definition):
+    def _fit_all(self, g, h, b, plan, definition, deadline=None, x0=None):
         """:meth:`_fit`, then, if it ended at the heavy corner short of a target, again from there with the
         HEAVY channels open; if it ends a few millimetres short, once more with a residual per watched
-        plane. Returns as :meth:`_fit`."""
-        x, meas, iterations = self._fit(g, h, b, plan, definition)
-        if x[-1] >= B_MAX - 1e-9 and plan.missed(meas):
+        plane. Returns as :meth:`_fit` (``deadline``, ``x0``: as there)."""
+        x, meas, iterations = self._fit(g, h, b, plan, definition, x0=x0, deadline=deadline)
+        if x[-1] >= B_MAX - 1e-9 and plan.missed(meas) and x.size == 2 * self._sets[0].n + 2:
             x0 = self._sets[0].widen(x, self._sets[1])
-            x, meas, more = self._fit(g, h, b, plan, definition, x0=x0, heavy=True)
+            x, meas, more = self._fit(g, h, b, plan, definition, x0=x0, heavy=True, deadline=deadline)
             iterations += more
         if plan.missed(meas) and plan.worst(meas) < EACH_PLANE_MISS:
             # a close miss: the extremum may have jumped between planes. Solve again from the start with a
@@ -248,20 +257,21 @@ class Morpher:
             # it costs a gradient per watched plane and takes other paths, on which bodies that build
             # without it can miss (168 cm, bust 90, waist 72, hips 98 ended 0.2 mm off her waist); from
             # the missed body instead, a 158.5 cm / 104 kg man stalled at his chest band's jumps
-            x2, meas2, more = self._fit(g, h, b, plan, definition, each_plane=True)
+            x2, meas2, more = self._fit(g, h, b, plan, definition, each_plane=True, deadline=deadline)
             iterations += more
             if plan.worst(meas2) < plan.worst(meas):
                 x, meas = x2, meas2
         return x, meas, iterations
 
     def _fit(self, g, h, b, plan, definition, push=None, max_outer=7, max_inner=40, x0=None, soft=SOFT_WEIGHT,
-             heavy=False, each_plane=False):
+             heavy=False, each_plane=False, deadline=None):
         """The measurement stage: channel weights, height slider and build meeting ``plan``.
 
         ``push`` = (name, goal, weight) replaces one goal (the reach search). Returns (x, measurement,
         outer iterations); ``x`` = [-incr weights, -decr weights, height slider, build] of the base channels,
         or with ``heavy`` (or an ``x0`` of that size) of the base and HEAVY ones. ``each_plane``: a residual
-        per watched plane. The outer loop: ``morph_planes.outer_loop``."""
+        per watched plane. The outer loop: ``morph_planes.outer_loop``. Past ``deadline`` (time.perf_counter())
+        it raises :class:`OutOfTime` (a reach search's time limit)."""
         m = self.measurer
         n_ch = self._sets[1 if heavy else 0].n if x0 is None else (len(x0) - 2) // 2
         rows, mass, w_mass = self._goals(plan, push, soft, each_plane and definition != "makehuman")
@@ -272,6 +282,8 @@ class Morpher:
 
         def residual(q, planes, jac=False):
             # q = [x, slacks of the watched planes (morph_planes.py), during an inner solve]
+            if deadline is not None and time.perf_counter() > deadline:
+                raise OutOfTime
             p, slack = q[:nx], (q[nx:] if q.size > nx else None)
             v = self._body_split(self.macro(g, p[-2], p[-1]), p[:n_ch], p[n_ch:2 * n_ch])
             m.held_points = None if planes is None else held[0]
@@ -410,11 +422,11 @@ class Morpher:
         return J
 
     # ----------------------------------------------------------------- checks
-    def _check(self, res: MorphResult, definition: str, g: float, deadline: float) -> None:
+    def _check(self, res: MorphResult, definition: str, g: float, deadline: float, x=None) -> None:
         """Raise InputError naming each target that was missed, with the range reachable given the others.
 
-        Ranges are searched for the worst-missed targets first, while ``deadline`` (time.perf_counter())
-        allows: a failure answers within :data:`FAILURE_SECONDS`.
+        Ranges are searched for the worst-missed targets first, each from the missed body ``x`` (the solve's
+        channels and sliders), while ``deadline`` (time.perf_counter()) allows (:data:`RANGE_SEARCH_UNTIL`).
         """
         import time
 
@@ -429,24 +441,32 @@ class Morpher:
             unit, scale = ("kg", 1.0) if k == "weight" else ("cm", 100.0)
             want = res.weight_kg if k == "weight" else res.targets[k] * 100
             got = res.measurement.mass_kg if k == "weight" else res.measurement.values[k] * 100
+            reach = "range not searched in the time limit: --search-time to search longer"
             if time.perf_counter() < deadline:
-                lo, hi = self.reachable(k, res.targets, g, definition, res.weight_kg)
-                reach = _range_text(lo * scale, hi * scale, 0.1, unit)
-            else:
-                reach = "range not searched: time limit"
+                try:
+                    lo, hi = self.reachable(k, res.targets, g, definition, res.weight_kg, deadline=deadline, x0=x)
+                    reach = _range_text(lo * scale, hi * scale, 0.1, unit)
+                except OutOfTime:  # the search is cut short: a failure answers within its time
+                    pass
+                except InputError:  # without it the others are refused: no body meets them, so no range
+                    reach = "no range: without it the other targets are outside the population"
             parts[k] = f"{k} {want:.1f} {unit} ({reach}, got {got:.1f})"
         what = "cannot be reached" if len(parts) == 1 else "cannot be met together"
         order = [k for k in list(res.targets) + ["weight"] if k in parts]
         raise InputError(f"target {what}: " + "; ".join(parts[k] for k in order) + " with the other targets as given")
 
-    def reachable(self, name: str, targets: dict, gender, definition: str = "iso", weight_kg=None):
+    def reachable(self, name: str, targets: dict, gender, definition: str = "iso", weight_kg=None, deadline=None,
+                  x0=None):
         """(lo, hi) of ``name`` (m; kg for ``'weight'``) over bodies that meet the *other* targets.
 
         A solve without ``name`` finds a body meeting the others; from it, two short solves pull
         ``name`` towards half and twice its value (at a weight that gives way to every other
         target) and read where they stopped. Each end is the value of a body that meets the other
         targets, so the range is true, though a longer search may find it a little wider.
-        ``(nan, nan)`` if the other targets cannot be met together either.
+        ``(nan, nan)`` if the other targets cannot be met together either. Raises :class:`OutOfTime` past
+        ``deadline`` (time.perf_counter(); None: no limit). ``x0``: where the solve without ``name`` starts (the
+        body that missed: it is near the others' targets, and from there that solve took 0.5 s where it took 1.6 s
+        from the average body (waist 90, hips 95, bust 130, underbust 70: the underbust's range)).
         """
         g = gender_value(gender)
         others = {k: v for k, v in targets.items() if k != name}
@@ -461,7 +481,9 @@ class Morpher:
 
         plan = self.plan(others, g, definition, w_others)
         h, b = self._semantic(g, plan.goals["height"], plan.mass, definition)
-        x, meas, _ = self._fit_all(g, h, b, plan, definition)
+        if x0 is not None and (x0.size != 2 * self._sets[0].n + 2 or x0[-1] >= B_MAX - 1e-9):
+            x0 = None  # missed at the heavy corner: from there the solve refits with the HEAVY channels, slower
+        x, meas, _ = self._fit_all(g, h, b, plan, definition, deadline=deadline, x0=x0)
         if not meets_others(meas):
             return float("nan"), float("nan")
         ends = [value(meas)]
@@ -469,13 +491,14 @@ class Morpher:
             # the estimates barely pull here (REACH_SOFT): what limits the range is the other targets
             push = (name, value(meas) * far, REACH_WEIGHT)
             x2, meas2, _ = self._fit(g, h, b, plan, definition, push=push, max_outer=2, max_inner=12, x0=x,
-                                     soft=REACH_SOFT)
+                                     soft=REACH_SOFT, deadline=deadline)
             if meets_others(meas2):
                 ends.append(value(meas2))
             if far > 1.0 and x2[-1] >= B_MAX - 1e-9 and x2.size == 2 * self._sets[0].n + 2:
                 # stopped at the heavy corner: go on with the HEAVY channels, as a solve would
                 x3, meas3, _ = self._fit(g, h, b, plan, definition, push=push, max_outer=2, max_inner=12,
-                                         x0=self._sets[0].widen(x2, self._sets[1]), soft=REACH_SOFT, heavy=True)
+                                         x0=self._sets[0].widen(x2, self._sets[1]), soft=REACH_SOFT, heavy=True,
+                                         deadline=deadline)
                 if meets_others(meas3):
                     ends.append(value(meas3))
         return min(ends), max(ends)
