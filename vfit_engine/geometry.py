@@ -27,30 +27,52 @@ def vertex_normals(verts, faces, face_offsets=None, outward=False):
         Flip all normals if, summed over the vertices the faces use, they point towards those
         vertices' centroid: for a closed surface whose winding is not known (the body).
     """
-    v = np.asarray(verts, dtype=np.float64)
-    fv = np.asarray(faces, dtype=np.int64)
-    if face_offsets is None:
-        fv = fv.reshape(-1, 3)
-        fo = np.arange(0, fv.size + 1, 3, dtype=np.int64)
-        fv = fv.ravel()
-    else:
-        fo = np.asarray(face_offsets, dtype=np.int64)
-    sizes = np.diff(fo)
-    face_of = np.repeat(np.arange(sizes.size), sizes)
-    local = np.arange(fv.size) - fo[face_of]
-    nxt = fv[fo[face_of] + (local + 1) % sizes[face_of]]
-    # per-column bincounts: the sums of np.add.at, in the same order, ~10x faster
-    a, b = v[fv].T, v[nxt].T  # (np.cross costs 6x these three lines)
-    cross = (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-    face_n = np.stack([np.bincount(face_of, cross[k], sizes.size) for k in range(3)], axis=1)
-    corner_n = face_n[face_of]
-    vn = np.stack([np.bincount(fv, corner_n[:, k], v.shape[0]) for k in range(3)], axis=1)
-    if outward:
-        used = np.unique(fv)
-        if np.sum(vn[used] * (v[used] - v[used].mean(0))) < 0:
-            vn = -vn
-    ln = np.linalg.norm(vn, axis=1, keepdims=True)
-    return np.divide(vn, ln, out=np.zeros_like(vn), where=ln > 0)
+    return PolygonNormals(faces, face_offsets)(verts, outward)
+
+
+class PolygonNormals:
+    """:func:`vertex_normals` of one set of faces at many vertex positions.
+
+    The faces' corner topology (each corner's face and the next corner round it) is worked out once:
+    the untangling asks for the garment's normals at every iteration (~60).
+
+    Parameters
+    ----------
+    faces, face_offsets
+        As :func:`vertex_normals` takes them.
+    """
+
+    def __init__(self, faces, face_offsets=None):
+        fv = np.asarray(faces, dtype=np.int64)
+        if face_offsets is None:
+            fv = fv.reshape(-1, 3)
+            fo = np.arange(0, fv.size + 1, 3, dtype=np.int64)
+            fv = fv.ravel()
+        else:
+            fo = np.asarray(face_offsets, dtype=np.int64)
+        sizes = np.diff(fo)
+        self.fv, self.n_faces = fv, sizes.size
+        self.face_of = np.repeat(np.arange(sizes.size), sizes)
+        local = np.arange(fv.size) - fo[self.face_of]
+        self.nxt = fv[fo[self.face_of] + (local + 1) % sizes[self.face_of]]
+
+    def __call__(self, verts, outward=False):
+        """(n, 3) unit vertex normals at ``verts`` (n, 3) float64 (``outward``: as :func:`vertex_normals`)."""
+        v = np.asarray(verts, dtype=np.float64)
+        fv, face_of, nxt = self.fv, self.face_of, self.nxt
+        # per-coordinate gathers from contiguous columns (2x faster than the strided rows of v[fv].T)
+        # and per-column bincounts (the sums of np.add.at, in the same order, ~10x faster)
+        x, y, z = np.ascontiguousarray(v.T)
+        ax, ay, az, bx, by, bz = x[fv], y[fv], z[fv], x[nxt], y[nxt], z[nxt]
+        cross = (ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)  # np.cross costs 6x this line
+        vn = np.stack([np.bincount(fv, np.bincount(face_of, c, self.n_faces)[face_of], v.shape[0]) for c in cross],
+                      axis=1)
+        if outward:
+            used = np.flatnonzero(np.bincount(fv, minlength=v.shape[0]))  # np.unique(fv), without its sort
+            if np.sum(vn[used] * (v[used] - v[used].mean(0))) < 0:
+                vn = -vn
+        ln = np.linalg.norm(vn, axis=1, keepdims=True)
+        return np.divide(vn, ln, out=np.zeros_like(vn), where=ln > 0)
 
 
 def boundary_loops(mesh, vertex_mask=None):

@@ -44,26 +44,50 @@ class Sections:
 
         Intervals less than ``tol`` (m) apart are merged.
         """
-        n = int(np.searchsorted(self.lo, y))
-        m = self.hi[:n] > y
-        if not m.any():
-            return np.zeros((0, 2))
-        t = self.t[:n][m]
-        xs = np.full((t.shape[0], 3), np.nan)
-        for k, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
-            a, b = t[:, i], t[:, j]
-            cross = (a[:, 1] - y) * (b[:, 1] - y) < 0
-            s = np.where(cross, (y - a[:, 1]) / np.where(cross, b[:, 1] - a[:, 1], 1.0), 0.0)
-            xs[:, k] = np.where(cross, a[:, 0] + s * (b[:, 0] - a[:, 0]), np.nan)
-        lo, hi = np.nanmin(xs, 1), np.nanmax(xs, 1)
-        order = np.argsort(lo)
-        lo, hi = lo[order], hi[order]
+        return self.runs_at([y], tol)[0]
+
+    def runs_at(self, ys, tol=0.002):
+        """The runs of :meth:`runs` at every height of ``ys`` at once.
+
+        One pass over the triangles instead of one per height: the level scans ask for a few hundred
+        heights, and a height at a time spent most of its time on per-call overhead and on masking
+        every triangle below it.
+
+        Returns
+        -------
+        runs : (r, 2) float64, m
+        owner : (r,) int64
+            Index into ``ys`` of each run; the runs of one height are left to right.
+        """
+        ys = np.asarray(ys, dtype=np.float64).ravel()
+        order = np.argsort(ys, kind="stable")
+        ys_s = ys[order]
+        # the (triangle, height) pairs with lo < y < hi: the heights strictly inside a triangle's span
+        first = np.searchsorted(ys_s, self.lo, side="right")
+        count = np.maximum(np.searchsorted(ys_s, self.hi, side="left") - first, 0)
+        tri = np.repeat(np.arange(count.size), count)
+        if not tri.size:
+            return np.zeros((0, 2)), np.zeros(0, np.int64)
+        k = np.arange(tri.size) - np.repeat(np.cumsum(count) - count, count) + first[tri]
+        lo, hi = _crossing_intervals(self.t[tri], ys_s[k])
+        # by height, then left to right (two argsorts: faster than np.lexsort here)
+        o = np.argsort(lo)
+        o = o[np.argsort(k[o], kind="stable")]
+        k, lo, hi = k[o], lo[o], hi[o]
         # a run ends where the next interval starts beyond the furthest end so far (the run's own end: every
-        # earlier run ended before this one began)
+        # earlier run ended before this one began); every height starts a run of its own
         start = np.ones(lo.size, dtype=bool)
-        start[1:] = lo[1:] > np.maximum.accumulate(hi)[:-1] + tol
-        first = np.flatnonzero(start)
-        return np.stack([lo[first], np.maximum.reduceat(hi, first)], axis=1)
+        start[1:] = (k[1:] != k[:-1]) | (lo[1:] > _cummax_by_group(hi, k)[:-1] + tol)
+        starts = np.flatnonzero(start)
+        return np.stack([lo[starts], np.maximum.reduceat(hi, starts)], axis=1), order[k[starts]]
+
+    def central_widths(self, ys, x_c, tol=0.002):
+        """(len(ys),) width (m) of the run holding ``x = x_c`` at every height of ``ys``, NaN where none."""
+        runs, owner = self.runs_at(ys, tol)
+        hit = (runs[:, 0] <= x_c) & (x_c <= runs[:, 1])
+        out = np.full(np.size(ys), np.nan)
+        out[owner[hit]] = runs[hit, 1] - runs[hit, 0]
+        return out
 
     def central_run(self, y, x_c):
         """The run (x0, x1) m at height ``y`` that holds ``x = x_c``, or None."""
@@ -71,6 +95,29 @@ class Sections:
             if a <= x_c <= b:
                 return a, b
         return None
+
+
+def _crossing_intervals(t, y):
+    """x-interval (lo, hi) where each triangle (p, 3, 3) crosses its plane ``y`` (p,)."""
+    xs = np.full((t.shape[0], 3), np.nan)
+    for k, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
+        a, b = t[:, i], t[:, j]
+        cross = (a[:, 1] - y) * (b[:, 1] - y) < 0
+        s = np.where(cross, (y - a[:, 1]) / np.where(cross, b[:, 1] - a[:, 1], 1.0), 0.0)
+        xs[:, k] = np.where(cross, a[:, 0] + s * (b[:, 0] - a[:, 0]), np.nan)
+    # fmin/fmax skip the NaN of the edge that does not cross: nanmin/nanmax's values, without their copies
+    return np.fmin(np.fmin(xs[:, 0], xs[:, 1]), xs[:, 2]), np.fmax(np.fmax(xs[:, 0], xs[:, 1]), xs[:, 2])
+
+
+def _cummax_by_group(x, group):
+    """Running maximum of ``x`` restarting at each new value of the sorted labels ``group``.
+
+    Done on the ranks of the values, offset by group, so that one ``np.maximum.accumulate`` serves all
+    groups and the maxima are the values themselves (an offset added to the floats would round them).
+    """
+    vals, rank = np.unique(x, return_inverse=True)
+    offset = group * vals.size
+    return vals[np.maximum.accumulate(offset + rank.ravel()) - offset]
 
 
 def body_levels(body_verts, body_tris, sections=None):
@@ -104,7 +151,7 @@ def _levels(surf, sec):
     # armpit: top of the longest stretch of sections with the arms apart (>= 3 runs) in the
     # upper body; shoulder bumps or hands give short stretches only
     ys = np.arange(y0 + 0.55 * h, y0 + 0.85 * h, SCAN_STEP)
-    apart = np.array([len(sec.runs(y)) >= 3 for y in ys])
+    apart = np.bincount(sec.runs_at(ys)[1], minlength=ys.size) >= 3
     if not apart.any():
         return out
     best_len, best_top, run_len = 0, None, 0
@@ -115,22 +162,18 @@ def _levels(surf, sec):
     armpit = float(ys[best_top])
     out["armpit_y"] = armpit
     ys_up = np.arange(armpit, armpit + 0.6 * (y1 - armpit), SCAN_STEP)
-    widths = []
-    for y in ys_up:
-        r = sec.central_run(y, x_c)
-        widths.append(np.nan if r is None else r[1] - r[0])
+    widths = sec.central_widths(ys_up, x_c)
     if np.isfinite(widths).any():
         out["neck_y"] = float(ys_up[np.nanargmin(widths)])
     below = np.arange(armpit, y0, -SCAN_STEP)
-    widths_below = []
-    for y in below:
-        r = sec.central_run(y, x_c)
-        if r is None:
-            out["crotch_y"] = float(y)
-            break
-        widths_below.append(r[1] - r[0])
-    if np.isfinite(out["crotch_y"]) and widths_below:
-        n = len(widths_below)
+    # all heights at once (cheaper than stopping early a height at a time); the legs part at the first gap
+    widths_below = sec.central_widths(below, x_c)
+    gap = np.flatnonzero(np.isnan(widths_below))
+    if gap.size:
+        out["crotch_y"] = float(below[gap[0]])
+        widths_below = widths_below[:gap[0]]
+    if np.isfinite(out["crotch_y"]) and widths_below.size:
+        n = widths_below.size
         lo, hi = int(0.1 * n), max(int(0.9 * n), int(0.1 * n) + 1)
         out["waist_y"] = float(below[lo + int(np.argmin(widths_below[lo:hi]))])
     return out

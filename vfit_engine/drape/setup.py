@@ -178,6 +178,7 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
         openings = check_openings(rest_mesh, body.surface, tris, skin=st.contact.skin, pos=start, loops=loops)
         start, zones = fit_openings(rest_mesh, start, openings, body.surface, tris, st.contact.skin,
                                     st.stretch_zone, pins.indices, loops=loops)
+        parts = skin_parts(model)  # while the collider builds (the set-up ends waiting for it)
         collide = building.result()
     spheres = project = None
     if collider != "mesh":
@@ -185,7 +186,7 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     info = dict(placement=placement, transfer=tinfo, rest="graded" if graded else "garment",
                 made_on=made_on(binding, reference, body), setup_time_s=time.perf_counter() - t0)
     return DrapeSetup(garment, np.ascontiguousarray(rest_pos), np.ascontiguousarray(start), body, reference, tris,
-                      mat, pins, openings, zones, collide, collider, spheres, project, info, skin_parts(model))
+                      mat, pins, openings, zones, collide, collider, spheres, project, info, parts)
 
 
 def _pins(garment, rest_pos, placed, start, body, reference, tris, pin, graded, st):

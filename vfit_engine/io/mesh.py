@@ -107,10 +107,18 @@ class MeshData:
 
     def edges(self):
         """(E, 2) int64 unique undirected polygon edges (not triangulation diagonals), i < j, sorted."""
+        return self._unique_edges()[0]
+
+    def _unique_edges(self):
+        """Sorted unique undirected edges (E, 2) and how many face sides use each (E,)."""
         a, b = self._edge_pairs()
-        e = np.sort(np.stack([a, b], axis=1), axis=1)
-        e = e[e[:, 0] != e[:, 1]]
-        return np.unique(e, axis=0)
+        lo, hi = np.minimum(a, b).astype(np.int64, copy=False), np.maximum(a, b).astype(np.int64, copy=False)
+        keep = lo != hi
+        # one int64 key per edge, ordered as the (lo, hi) rows are: np.unique of an int64 array is
+        # ~20x faster than np.unique(axis=0), which sorts the rows as structured records
+        n = int(hi.max()) + 1 if hi.size else 1
+        key, count = np.unique(lo[keep] * n + hi[keep], return_counts=True)
+        return np.stack([key // n, key % n], axis=1).astype(self.face_verts.dtype, copy=False), count
 
     def _edge_pairs(self):
         """Directed edges (a, b) of every face corner to the next corner of the same face."""
@@ -122,10 +130,7 @@ class MeshData:
 
     def boundary_edges(self):
         """(B, 2) int64 edges used by exactly one face (the open border of a cloth)."""
-        a, b = self._edge_pairs()
-        e = np.sort(np.stack([a, b], axis=1), axis=1)
-        e = e[e[:, 0] != e[:, 1]]
-        u, count = np.unique(e, axis=0, return_counts=True)
+        u, count = self._unique_edges()
         return u[count == 1]
 
     def with_verts(self, verts):

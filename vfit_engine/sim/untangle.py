@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vfit_engine.geometry import vertex_normals
+from vfit_engine.geometry import PolygonNormals
 
 
 def untangle(pos, face_verts, face_offsets, collider, spring_indices, max_len, skin, pinned=None,
@@ -70,6 +70,7 @@ def untangle(pos, face_verts, face_offsets, collider, spring_indices, max_len, s
                             shape=(n, n)).tocsr()
     deg = np.asarray(adj.sum(axis=1)).ravel()
     mean_op = sparse.diags(np.divide(decay, deg, out=np.zeros(n), where=deg > 0)) @ adj
+    normals = PolygonNormals(face_verts, face_offsets)  # the topology once, not per iteration
     inside_before = None
     it = 0
     flip = None
@@ -83,7 +84,7 @@ def untangle(pos, face_verts, face_offsets, collider, spring_indices, max_len, s
             inside_before = n_in
         if n_in == 0 or it == max_iterations:
             break
-        gn = vertex_normals(x, face_verts, face_offsets)
+        gn = normals(x)
         if flip is None:
             # garments may be wound either way: orient by the vertices near the body
             near = np.isfinite(d) & (np.abs(d) < 0.05)
@@ -108,5 +109,5 @@ def untangle(pos, face_verts, face_offsets, collider, spring_indices, max_len, s
     if flip is None:
         d, _, cn, _ = collider.query(x, max_out=0.05, max_in=0.05)
         near = np.isfinite(d)
-        flip = float(np.sum(np.einsum("ij,ij->i", vertex_normals(x, face_verts, face_offsets)[near], cn[near]))) < 0
+        flip = float(np.sum(np.einsum("ij,ij->i", normals(x)[near], cn[near]))) < 0
     return x, dict(iterations=it, inside_before=inside_before, inside_after=n_in, flip=bool(flip))
