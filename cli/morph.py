@@ -29,10 +29,10 @@ def girth_option(name, help_text):
 @click.option("--definition", type=click.Choice(["iso", "makehuman", "spline"]), default="iso", show_default=True,
               help="How girths are measured: iso = horizontal tape (convex hull of the torso section), "
                    "makehuman = MakeHuman's rulers, spline = profile curve through the section.")
-@click.option("--search-time", "search_time", type=click.FloatRange(0.0, 600.0), default=1.6, show_default=True,
+@click.option("--search-time", "search_time", type=click.FloatRange(0.0, 600.0), default=None,
               help="Seconds after the solve starts by which targets that cannot be met have had the ranges "
-                   "reachable with the others searched (a failure then answers within ~3 s); a range cut short "
-                   "says so: give more to get it.")
+                   "reachable with the others searched [default: 2.0, so that a failure answers within ~3 s]; a "
+                   "range cut short says so: give more to get it.")
 @click.option("-o", "--output", default="body.obj", show_default=True, type=click.Path(dir_okay=False),
               help="Body mesh to write: .obj (with UVs) or .ply; metres, Y up, hm08 vertex order.")
 @click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),

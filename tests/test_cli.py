@@ -241,3 +241,26 @@ def test_parallel_kernels_prefer_openmp_to_tbb():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env,
                          timeout=120).stdout
     assert out.split() in (["omp", "omp"], ["omp", "workqueue"])
+
+
+@pytest.mark.parametrize("code,thread,want_code,want_out", [
+    (3, False, 3, "written"),  # ends at once: what was written is flushed first
+    (None, False, 0, "written"),
+    ("Error: bad", False, 1, "written"),  # a SystemExit message goes to stderr, exit 1
+    (3, True, 3, "written, then the thread"),  # a thread that is not a daemon still runs: ends as usual
+])
+def test_program_end_flushes_and_waits_for_what_runs(code, thread, want_code, want_out):
+    """The ``vfit`` program skips Python's teardown after a command (cli.main.end), unless something still
+    runs that it waits for: written output is never lost and the exit code is the command's."""
+    import subprocess
+    import sys
+
+    src = ("import sys, threading, time\n"
+           "from vfit_cli.main import end\n"
+           "sys.stdout.write('written')\n"
+           + ("threading.Thread(target=lambda: (time.sleep(0.3), sys.stdout.write(', then the thread'))).start()\n"
+              if thread else "")
+           + f"end({code!r})\n")
+    r = subprocess.run([sys.executable, "-c", src], capture_output=True, text=True, timeout=60)
+    assert r.returncode == want_code and r.stdout == want_out, (r.returncode, r.stdout, r.stderr)
+    assert r.stderr == ("Error: bad\n" if isinstance(code, str) else "")

@@ -33,11 +33,12 @@ REACH_SOFT = 1e-4
 #: where a reach search pulls that goal: these multiples of its estimate
 REACH_PULL = (0.5, 2.0)
 #: seconds after a solve starts by which the reach searches of a failure end: none begins later, and one still
-#: running then is cut short ("range not searched: time limit"), so a failure answers within ~3 s of the
-#: command's start (~1.2 s of it is Python, NumPy and Numba starting). A range costs 0.2-0.5 s (bust 70 +
-#: underbust 90: both in 1.0-1.4 s of the process), but up to 1.4 s where the other targets make a hard body
-#: (waist 90, hips 95, bust 130, underbust 70: the underbust's range): uncut, that failure took 3.1-3.4 s
-RANGE_SEARCH_UNTIL = 1.6
+#: running then is cut short ("range not searched in the time limit"), so that a failure answers within ~3 s of
+#: the command's start. Measured in a fresh `vfit morph --bust 70 --underbust 90` on a quiet machine: Python,
+#: NumPy, Numba and the body model 0.6 s; in the solve, Numba's first use (its registries, the kernels' cache)
+#: 0.6 s and the missed solve 0.65 s; then each range 0.3 s (both done 2.45 s after the start). Uncut, a range
+#: can take 1.4 s (waist 90, hips 95, bust 130, underbust 70: the underbust's): that failure took 3.1-3.4 s
+RANGE_SEARCH_UNTIL = 2.0
 #: the build path's ends. Below -1 the weight slider goes on linearly beyond MakeHuman's 0 (a lean
 #: 195 cm / 75 kg man needs -1.35); above 1 it is not extrapolated: there the heavy corner's faces
 #: turn over (hands, armpits: 22 faces at 1.1, 78 at 1.2 on the male) and the measure targets reach
