@@ -1,8 +1,8 @@
 """Check the morph's reach (issue 11) with a tape independent of the code under test.
 
     python scripts/reach_check.py             # the issue's list of bodies, each built by `vfit morph`
-    python scripts/reach_check.py --population [--tape]
-                                               # the 1st/99th percentile bodies of the survey, via the API
+    python scripts/reach_check.py --population [--no-tape]
+                                               # the 1st/99th percentile bodies of the survey, likewise
 
 Every body is re-measured by tests/tape.py (trimesh sections + scipy hulls, its own bust points), its
 stature from the vertices and its mass as trimesh's enclosed volume x 985 kg/m^3. Prints one row per
@@ -51,28 +51,35 @@ def _obj_vertices(path):
         return np.array([[float(t) for t in ln.split()[1:4]] for ln in fh if ln.startswith("v ")])
 
 
-def run_list(quads, breasts):
+def build(tmp, gender, cm, kg):
+    """Build a body by `vfit morph` (a process, as a user runs it): (vertices or None, seconds, warnings or the
+    error)."""
     exe = Path(sys.executable).parent / "vfit"
+    out, rep = Path(tmp) / "b.obj", Path(tmp) / "b.json"
+    args = [str(exe), "morph", "--gender", gender, "-o", str(out), "--json", str(rep), "--quiet"]
+    for k, v in cm.items():
+        args += [f"--{k}", repr(float(v))]
+    if kg is not None:
+        args += ["--weight", repr(float(kg))]
+    t = time.perf_counter()
+    p = subprocess.run(args, capture_output=True, text=True)
+    dt = time.perf_counter() - t
+    if p.returncode:
+        return None, dt, p.stderr.strip()
+    return _obj_vertices(out), dt, "; ".join(json.loads(rep.read_text())["warnings"])
+
+
+def run_list(quads, breasts):
     print(f"{'body':18s} {'max err mm':>10s} {'mass err kg':>11s} {'mass kg':>8s} {'CLI s':>6s}  warnings")
     with tempfile.TemporaryDirectory() as tmp:
         for name, gender, cm, kg in REACH:
-            out, rep = Path(tmp) / "b.obj", Path(tmp) / "b.json"
-            args = [str(exe), "morph", "--gender", gender, "-o", str(out), "--json", str(rep), "--quiet"]
-            for k, v in cm.items():
-                args += [f"--{k}", str(v)]
-            if kg is not None:
-                args += ["--weight", str(kg)]
-            t = time.perf_counter()
-            p = subprocess.run(args, capture_output=True, text=True)
-            dt = time.perf_counter() - t
-            if p.returncode:
-                print(f"{name:18s} FAILED ({dt:.2f} s): {p.stderr.strip()}")
+            verts, dt, text = build(tmp, gender, cm, kg)
+            if verts is None:
+                print(f"{name:18s} FAILED ({dt:.2f} s): {text}")
                 continue
-            verts = _obj_vertices(out)
             err, dm, mass = independent(verts, quads, cm, kg, breasts)
-            warn = "; ".join(json.loads(rep.read_text())["warnings"])
             dm_text = f"{dm:+.3f}" if dm is not None else "-"
-            print(f"{name:18s} {err:10.3f} {dm_text:>11s} {mass:8.1f} {dt:6.2f}  {warn}", flush=True)
+            print(f"{name:18s} {err:10.3f} {dm_text:>11s} {mass:8.1f} {dt:6.2f}  {text}", flush=True)
 
 
 def population_bodies(pop):
@@ -98,27 +105,23 @@ def population_bodies(pop):
 
 def run_population(model, quads, breasts, tape):
     from vfit_engine.body.morph import Morpher
-    from vfit_engine.errors import InputError
 
     morpher = Morpher(model)
     print(f"{'gender':7s} {'body':18s} {'height':>6s} {'mass':>6s} {'bust':>6s} {'waist':>6s} {'hips':>6s} "
-          f"{'max err mm':>10s} {'mass err kg':>11s} {'s':>5s}")
-    for gender in ("female", "male"):
-        g = 0.0 if gender == "female" else 1.0
-        for label, body in population_bodies(morpher.population(g)):
-            targets = {k: v for k, v in body.items() if k != "mass"}
-            cm = {k: v * 100 for k, v in targets.items()}
-            row = f"{gender:7s} {label:18s} " + " ".join(f"{body[k] * (1 if k == 'mass' else 100):6.1f}"
-                                                      for k in ("height", "mass", "bust", "waist", "hips"))
-            t = time.perf_counter()
-            try:
-                res = morpher.solve(targets, gender=gender, weight_kg=body["mass"])
-            except InputError as e:
-                print(f"{row} FAILED ({time.perf_counter() - t:.2f} s): {e}")
-                continue
-            dt = time.perf_counter() - t
-            err, dm, _ = independent(res.verts, quads, cm, body["mass"], breasts, tape)
-            print(f"{row} {err:10.3f} {dm:+11.3f} {dt:5.2f}", flush=True)
+          f"{'max err mm':>10s} {'mass err kg':>11s} {'CLI s':>6s}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for gender in ("female", "male"):
+            g = 0.0 if gender == "female" else 1.0
+            for label, body in population_bodies(morpher.population(g)):
+                cm = {k: v * 100 for k, v in body.items() if k != "mass"}
+                row = f"{gender:7s} {label:18s} " + " ".join(f"{body[k] * (1 if k == 'mass' else 100):6.1f}"
+                                                          for k in ("height", "mass", "bust", "waist", "hips"))
+                verts, dt, text = build(tmp, gender, cm, body["mass"])
+                if verts is None:
+                    print(f"{row} FAILED ({dt:.2f} s): {text}")
+                    continue
+                err, dm, _ = independent(verts, quads, cm, body["mass"], breasts, tape)
+                print(f"{row} {err:10.3f} {dm:+11.3f} {dt:6.2f}", flush=True)
 
 
 def main():
