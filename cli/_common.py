@@ -8,6 +8,17 @@ import sys
 
 import click
 
+#: time.perf_counter() when the ``vfit`` program started its command (``main.run``); None when a command is
+#: invoked in-process (a test's CliRunner): then a command counts from its own start
+PROGRAM_START = None
+
+
+def seconds_since_start(command_start):
+    """Seconds since the program started (or since ``command_start``, a perf_counter, when in-process)."""
+    import time
+
+    return time.perf_counter() - (command_start if PROGRAM_START is None else PROGRAM_START)
+
 
 class Quantity(click.ParamType):
     """A finite number in ``[lo, hi]`` with a unit, e.g. ``Quantity('cm', 1, 400)``."""

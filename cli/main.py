@@ -74,6 +74,11 @@ def cli():
 
 def run():
     """The ``vfit`` program: :func:`cli`, then the process ends (:func:`end`)."""
+    import time
+
+    from . import _common
+
+    _common.PROGRAM_START = time.perf_counter()
     try:
         cli.main()
     except SystemExit as exc:  # cli.main always ends so (standalone mode)

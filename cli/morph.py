@@ -1,7 +1,12 @@
 """``vfit morph``: build a body to a customer's measurements."""
 import click
 
-from ._common import Gender, Quantity, check_output_path, fmt_table, handle_errors, write_json
+from ._common import Gender, Quantity, check_output_path, fmt_table, handle_errors, seconds_since_start, write_json
+
+#: seconds after the program starts by which a failure's searches for the ranges reachable end (a search still
+#: running is cut): with cutting it, writing the error, ending the process (~0.2 s) and Python's own start
+#: (~0.1 s), a failure answers within ~3 s
+FAILURE_SECONDS = 2.6
 
 #: option name -> measurement name (all in cm on the command line)
 GIRTH_OPTIONS = ("bust", "underbust", "waist", "hips", "neck", "upper_arm", "thigh", "calf")
@@ -31,8 +36,8 @@ def girth_option(name, help_text):
                    "makehuman = MakeHuman's rulers, spline = profile curve through the section.")
 @click.option("--search-time", "search_time", type=click.FloatRange(0.0, 600.0), default=None,
               help="Seconds after the solve starts by which targets that cannot be met have had the ranges "
-                   "reachable with the others searched [default: 2.0, so that a failure answers within ~3 s]; a "
-                   "range cut short says so: give more to get it.")
+                   "reachable with the others searched [default: until 2.6 s after vfit started, so that a failure "
+                   "answers within ~3 s]; a range cut short says so: give more to get it.")
 @click.option("-o", "--output", default="body.obj", show_default=True, type=click.Path(dir_okay=False),
               help="Body mesh to write: .obj (with UVs) or .ply; metres, Y up, hm08 vertex order.")
 @click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),
@@ -70,6 +75,8 @@ def morph(gender, height, weight, definition, search_time, output, json_path, qu
     from vfit_engine.body.morph import Morpher
 
     morpher = Morpher()
+    if search_time is None:  # the searches end FAILURE_SECONDS after the program started, however long it took
+        search_time = max(0.0, FAILURE_SECONDS - seconds_since_start(t0))
     res = morpher.solve(targets, gender=gender, definition=definition, weight_kg=weight, search_seconds=search_time)
     gender_text = gender if isinstance(gender, str) else f"{gender:g} (0 female, 1 male)"
     header = [f"vfit morph: {gender_text} body, definition {definition}, units metres, Y up",
