@@ -306,7 +306,7 @@ class Morpher:
         def slack0(p, planes):  # the slacks start where the planes are (none without rows per plane)
             return rows.slack0(residual(p, planes)[1], planes) if rows.each_plane else np.zeros(0)
 
-        problem = Problem(residual, None if definition == "spline" else lambda q, planes: residual(q, planes, True)[1],
+        problem = Problem(residual, lambda q, planes: residual(q, planes, True)[1],
                           lambda planes: np.concatenate([base_hard, rows.hard(planes)]), slack0)
         # planes seen so far per girth (fractions of its band): when the extremum jumps between two
         # valleys the inner solve must watch both, or the outer loop would cycle between them. The
@@ -397,8 +397,14 @@ class Morpher:
             moves[row] = (self._macro_body(self.macro(macro.gender, q[-2], q[-1])) - base) / step
         moves3 = moves.reshape(2, N_BODY, 3)
         base = len(keys) + 3  # the hinge rows follow the keys', the mass's and the two point gaps'
+        # the profile spline's girth has no gradient of its own here: the tape's at the same plane stands in (the
+        # spline follows the hull but for hollows the tape bridges). The steps are then Gauss-Newton's with an
+        # approximate Jacobian and the spline girths decide when the targets are met: 24 random feasible target
+        # sets all met (worst 0.077 mm) in half the time of finite differences (0.144 mm), and a missed target
+        # found in 0.4-0.5 s instead of 1.1-2.2 s (a failure of `vfit morph --definition spline` took 2.7-3.5 s)
+        jdef = "iso" if definition == "spline" else definition
         for row, k, fraction in grads:
-            idx, grad = self.measurer.gradient(v, k, definition, fraction)
+            idx, grad = self.measurer.gradient(v, k, jdef, fraction)
             scale = wres[keys.index(k)] / _MM
             row = row if row < len(keys) else row - len(keys) + base
             J[row, :n_ch] = np.einsum("jkc,kc->j", ch.incr3[:, idx], grad) * scale
