@@ -64,7 +64,16 @@ class AnimateSettings:
     surface_spacing : float or None, m
         Spacing of the contact points over the cloth's triangles while the body moves (None: the drape's,
         15 mm): a moving body pushes the cloth between them more than a still one rests on it (the suit's
-        walk, 50 frames: 15 of 60 frames 2.0-2.9 mm deep at 15 mm, none over 1.43 mm at 10 mm).
+        walk, 50 frames: 15 of 60 frames 2.0-2.9 mm deep at 15 mm, none over 1.43 mm at 10 mm), and a hand
+        landing on a hem came between points 10 mm apart (the demo skirt in ``sit01.bvh``: frames 40-41 2.4 and
+        2.7 mm deep at 10 mm; 1.4 mm at 7 mm).
+    friction : float
+        Coulomb coefficient of the cloth on the moving skin. The still drape's contacts hold 0.8, the grip of
+        warm skin on resting cloth (static; it keeps trousers up); cloth that the body slides under moves at
+        kinetic friction, lower (fabric on skin 0.25-0.9 by site and moisture: Temel, Johnson & Lloyd 2022, the
+        figures of :mod:`vfit_engine.sim.materials`). At 0.8 the hand landing on the sitting skirt's lap held the
+        hem while the knee rose and stretched it (strain p99 8.8-10.4 % in frames 40-56, 7 mm points); at 0.5 it
+        stays within 7.4 % in all 360 frames, and the walking suit's trousers stay up (p99 5.5 %).
     skinning : {"dqs", "lbs"}
     collider : {"mesh", "bone-spheres", "spheres"}
     stick : bool
@@ -81,7 +90,8 @@ class AnimateSettings:
     max_push: float = 0.02
     max_speed: float = 8.0
     near: float = 0.05
-    surface_spacing: float | None = 0.010
+    surface_spacing: float | None = 0.007
+    friction: float = 0.5
     skinning: str = "dqs"
     collider: str = "mesh"
     stick: bool = False
@@ -91,7 +101,7 @@ class AnimateSettings:
             raise InputError(f"fps must be 1..240, got {self.fps!r}")
         if int(self.frames) < 1 or int(self.body_every) < 1:
             raise InputError("frames and body_every must be >= 1")
-        for name in ("blend_s", "max_push", "near"):
+        for name in ("blend_s", "max_push", "near", "friction"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise InputError(f"animate setting {name} must be >= 0")
         if self.collider not in COLLIDERS:
@@ -210,7 +220,8 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
         dataclasses.replace(setup, collider_kind="spheres", spheres=body.spheres.at(0, 0.0))
     if st.surface_spacing is not None:
         dst = dataclasses.replace(dst, surface_spacing=float(st.surface_spacing))
-    dst = dataclasses.replace(dst, contact=dataclasses.replace(dst.contact, stick=bool(st.stick)))
+    dst = dataclasses.replace(dst, contact=dataclasses.replace(dst.contact, stick=bool(st.stick),
+                                                               friction=float(st.friction)))
     _, solver = build_solver(moving, dst)
     sub_dt = 1.0 / (dst.fps * dst.solver.substeps)
     substeps = max(int(round(1.0 / (st.fps * sub_dt))), 1)
