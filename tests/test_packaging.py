@@ -24,4 +24,4 @@ def test_wheel_contents(tmp_path):
         assert required in names, required
     assert not any(n.startswith("cli/") for n in names), "a top-level 'cli' package must not be installed"
     entry = next(n for n in names if n.endswith("entry_points.txt"))
-    assert "vfit = vfit_cli.main:cli" in zipfile.ZipFile(wheel).read(entry).decode()
+    assert "vfit = vfit_cli.main:run" in zipfile.ZipFile(wheel).read(entry).decode()  # cli, then a quick end
