@@ -57,7 +57,7 @@ The underbust is not in the surveys: it follows the bust at the anchor body's ra
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import erf, sqrt
+from math import erf, erfc, sqrt
 
 import numpy as np
 
@@ -272,7 +272,8 @@ class PopulationModel:
         if s <= 0.0:
             return mean
         a = -mu / s
-        phi, big_phi = np.exp(-0.5 * a * a) / sqrt(2.0 * np.pi), 0.5 * (1.0 + erf(a / sqrt(2.0)))
+        # Phi(a) by erfc: 1 + erf(a / sqrt 2) loses every digit to cancellation below a ~ -8
+        phi, big_phi = np.exp(-0.5 * a * a) / sqrt(2.0 * np.pi), 0.5 * erfc(-a / sqrt(2.0))
         if big_phi <= 1e-300:  # the whole distribution beyond the bound: its mean at the bound
             shift = -mu
         else:
