@@ -66,7 +66,8 @@ class AnimateSettings:
         15 mm): a moving body pushes the cloth between them more than a still one rests on it (the suit's
         walk, 50 frames: 15 of 60 frames 2.0-2.9 mm deep at 15 mm, none over 1.43 mm at 10 mm), and a hand
         landing on a hem came between points 10 mm apart (the demo skirt in ``sit01.bvh``: frames 40-41 2.4 and
-        2.7 mm deep at 10 mm; 1.4 mm at 7 mm).
+        2.7 mm deep at 10 mm; 0.04 mm at 7 mm, but 5.8 and 2.4 mm at 8 and 9 mm: where the points fall on the
+        41 mm hem triangle decides whether the hand's edge catches it; a finer cloth would not depend on it).
     friction : float
         Coulomb coefficient of the cloth on the moving skin. The still drape's contacts hold 0.8, the grip of
         warm skin on resting cloth (static; it keeps trousers up); cloth that the body slides under moves at
