@@ -13,6 +13,14 @@ from vfit_engine.kernels.collide_mesh import _query_point
 #: A new contact plane turned further than this (cosine, ~8 degrees) from an earlier one, towards the
 #: point, marks a crease (:func:`_keep_crease`).
 CREASE_COS = 0.99
+#: A query measures the body out to the point's band plus this many ``reach`` (beyond it a point is only known to
+#: be that far): a point found clear keeps the distance as the bound that spares its next queries while it and
+#: the body move, so a wider band spares more. It changes no contact, only how often a clear point is asked
+#: again: the still drapes are bit-identical, and a walking suit's cloth took 25 % less time (the walk of
+#: ``male_casualsuit02``, 20 frames: 817-823 -> 598-635 ms a frame at 10 against 4; 20 was no better, and slower
+#: on the sitting skirt): a point hovering a few millimetres off a moving limb was asked again every substep or
+#: two, each query a search that found nothing within the band.
+QUERY_REACHES = 10.0
 
 
 @njit(inline="always")
@@ -135,7 +143,7 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
             n_c += 1
             continue
         was_contact = -math.inf < d_last[p] < band
-        query_out = band + 4.0 * reach  # a looser band makes the clear-distance bound last longer
+        query_out = band + QUERY_REACHES * reach
         d = bound = query_out
         qx = qy = qz = nx = ny = nz = 0.0
         ux = uy = uz = 0.0
