@@ -73,6 +73,34 @@ def test_queries_at_any_time_equal_a_still_collider_there(moving, s):
     np.testing.assert_allclose(d2[inside], d_ref[inside], rtol=0, atol=1e-12)
 
 
+def test_floored_queries_are_exact_within_their_floor(moving):
+    """A query told how deep the point can be at most (``floored``, as the cloth's contacts know from an earlier
+    query) stops searching beyond both bands, even in cells that do not know their side, and still answers every
+    point within them exactly and every other as outside: against a still collider at the same time."""
+    from vfit_engine._jit import njit
+    from vfit_engine.collide.body_mesh import MeshCollider
+    from vfit_engine.kernels.collide_mesh import _query_point
+
+    @njit
+    def floored(points, grid, max_out, max_in, out):
+        for p in range(points.shape[0]):
+            out[p] = _query_point(points[p, 0], points[p, 1], points[p, 2], grid, True, max_out, max_in[p], True)[0]
+
+    col, v0, v1, tris = moving
+    col.at(0.5)
+    now = v0 + 0.5 * (v1 - v0)
+    pts = _points_near(now, tris, 4000, 0.04, seed=11)
+    d_ref = MeshCollider(now, tris).query(pts, np.inf, np.inf)[0]
+    max_out = 0.012
+    max_in = np.maximum(-d_ref, 0.0) + 0.001  # what the point's bound allows
+    d = np.empty(len(pts))
+    floored(pts, col.grid, max_out, max_in, d)
+    near = d_ref < max_out
+    assert near.sum() > 1000 and (~near).sum() > 1000 and (d_ref < -0.01).sum() > 100
+    np.testing.assert_allclose(d[near], d_ref[near], rtol=0, atol=1e-12)
+    assert np.all((d[~near] == np.inf) | (np.abs(d[~near] - d_ref[~near]) < 1e-12))
+
+
 def test_swept_binning_against_brute_force():
     """Every cell whose centre comes within reach of a moving triangle (sampled at 61 times) is listed for it,
     at a level no higher than the closest distance seen; nothing is listed twice."""

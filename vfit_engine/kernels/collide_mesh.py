@@ -195,7 +195,7 @@ def _signed_result(px, py, pz, qx, qy, qz, best2, t, f, tris, tri_normals, tri_e
 
 
 @njit
-def _query_point(px, py, pz, grid, trust_sd, max_out, max_in):
+def _query_point(px, py, pz, grid, trust_sd, max_out, max_in, floored=False):
     """Signed distance of one point by the shell search described in the module docstring.
 
     Parameters
@@ -208,6 +208,12 @@ def _query_point(px, py, pz, grid, trust_sd, max_out, max_in):
     max_out, max_in : float, m
         Exact when ``-max_in < d < max_out``; a point proven outside that band returns
         ``d = +inf`` (outside) or ``-inf`` (inside) with ``tri = -1``.
+    floored : bool
+        The caller knows the point is no deeper than ``max_in`` inside the body (an earlier query and how far
+        point and body moved since): the search then ends at the wider of the two bands even where the cell does
+        not tell the point's side, and a point found farther is outside (``+inf``). Without it such a point is
+        searched until its closest triangle is found, however far: on a moving body's grid, whose cells near
+        a fast limb do not know their side, a point hovering 5 cm off took ~70 us.
 
     Returns
     -------
@@ -256,6 +262,8 @@ def _query_point(px, py, pz, grid, trust_sd, max_out, max_in):
         cap = max_in
     else:
         cap = np.inf
+    if floored:
+        cap = min(cap, max(max_out, max_in))
     if trust_sd and g2 == 0.0 and cell_start[c0] < cell_start[c0 + 1]:
         # exact centre distance (cells with triangles): |d(p)| <= |s| + half, a tight first bound
         cap = min(cap, max(abs(s), abs(s_hi)) + half * (1.0 + 1e-9))

@@ -21,6 +21,8 @@ CREASE_COS = 0.99
 #: on the sitting skirt): a point hovering a few millimetres off a moving limb was asked again every substep or
 #: two, each query a search that found nothing within the band.
 QUERY_REACHES = 10.0
+#: Extra depth (m) a query searches beyond the deepest the point's bound allows (rounding).
+FLOOR_SLACK = 0.001
 
 
 @njit(inline="always")
@@ -148,8 +150,13 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
         qx = qy = qz = nx = ny = nz = 0.0
         ux = uy = uz = 0.0
         if use_grid:
+            # d_last - moved is a lower bound of the point's distance now (the skip test's): given one, the search
+            # need not look deeper into the body than that (with the bumps' thickness and a millimetre to spare)
+            low = d_last[p] - moved
+            floored = low > -math.inf
+            max_in = max(-low, 0.0) + sag_max + FLOOR_SLACK if floored else math.inf
             dg, gqx, gqy, gqz, gnx, gny, gnz, t = _query_point(px, py, pz, grid, True, query_out + sag_max,
-                                                                math.inf)
+                                                                max_in, floored)
             if t >= 0:
                 e = em = 0.0
                 if body_sag.shape[0] > 0:
