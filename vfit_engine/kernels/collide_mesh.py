@@ -211,7 +211,8 @@ def _query_point(px, py, pz, grid, trust_sd, max_out, max_in, floored=False):
     floored : bool
         The caller knows the point is no deeper than ``max_in`` inside the body (an earlier query and how far
         point and body moved since): the search then ends at the wider of the two bands even where the cell does
-        not tell the point's side, and a point found farther is outside (``+inf``). Without it such a point is
+        not tell the point's side, and a point found farther is outside (``+inf``; ``-inf`` if its cell lies
+        wholly inside the body, which the caller's knowledge rules out). Without it such a point is
         searched until its closest triangle is found, however far: on a moving body's grid, whose cells near
         a fast limb do not know their side, a point hovering 5 cm off took ~70 us.
 
