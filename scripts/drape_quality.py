@@ -199,7 +199,10 @@ def with_settings(settings, assignments):
         if not value or not hasattr(holder, field):
             raise SystemExit(f"--set {text}: no drape setting {name!r} (DrapeSettings, solver.*, contact.*)")
         old = getattr(holder, field)
-        new = (value.lower() in ("1", "true", "yes")) if isinstance(old, bool) else type(old)(value)
+        try:
+            new = (value.lower() in ("1", "true", "yes")) if isinstance(old, bool) else type(old)(value)
+        except (TypeError, ValueError):
+            raise SystemExit(f"--set {text}: {name} takes a {type(old).__name__}") from None
         holder = replace(holder, **{field: new})
         settings = replace(settings, **{group: holder}) if group else holder
     return settings

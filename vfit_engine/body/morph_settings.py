@@ -34,10 +34,11 @@ REACH_SOFT = 1e-4
 REACH_PULL = (0.5, 2.0)
 #: seconds after a solve starts by which the reach searches of a failure end (the API's default; `vfit morph` gives
 #: what is left of 2.6 s since the program started): none begins later, and one still running then is cut short
-#: ("range not searched in the time limit"), so that a failure answers within ~3 s. Measured in a fresh `vfit morph --bust 70 --underbust 90` on a quiet machine: Python,
-#: NumPy, Numba and the body model 0.6 s; in the solve, Numba's first use (its registries, the kernels' cache)
-#: 0.6 s and the missed solve 0.65 s; then each range 0.3 s (both done 2.45 s after the start). Uncut, a range
-#: can take 1.4 s (waist 90, hips 95, bust 130, underbust 70: the underbust's): that failure took 3.1-3.4 s
+#: ("range not searched in the time limit"), so that a failure answers within ~3 s. Measured in a fresh
+#: `vfit morph --bust 70 --underbust 90` on a quiet machine: Python, NumPy, Numba and the body model 0.6 s; in the
+#: solve, Numba's first use (its registries, the kernels' cache) 0.6 s and the missed solve 0.65 s; then each range
+#: 0.3 s (both done 2.45 s after the start). Uncut, a range can take 1.4 s (waist 90, hips 95, bust 130, underbust
+#: 70: the underbust's): that failure took 3.1-3.4 s
 RANGE_SEARCH_UNTIL = 2.0
 #: the build path's ends. Below -1 the weight slider goes on linearly beyond MakeHuman's 0 (a lean
 #: 195 cm / 75 kg man needs -1.35); above 1 it is not extrapolated: there the heavy corner's faces
