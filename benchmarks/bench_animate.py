@@ -42,7 +42,7 @@ def main():
     model = BodyModel.load()
     g = load_garment(path)
     body = default_body(model, garment_gender(g) or "female")
-    dst = DrapeSettings()
+    dst = DrapeSettings(ground=False)  # as vfit animate drapes at rest (animate_garment: no ground in an animation)
     setup = prepare_drape(g, body, model, settings=dst)
     t = time.perf_counter()
     drape = run_drape(setup, dst)

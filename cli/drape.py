@@ -91,6 +91,9 @@ def body_targets(body_path, girths, height, weight):
               help="Simulate the cloth subdivided N times (each polygon into quads) and read the garment's own "
                    "vertices back from it: folds narrower than its polygons (silk on a coarse skirt); each level "
                    "costs ~3-5x the time. Also writes OUTDIR/final_fine.obj, the subdivided cloth.")
+@click.option("--ground/--no-ground", default=True, show_default=True,
+              help="A ground plane under the body's feet (5 mm below its lowest point) that the cloth rests on: "
+                   "trousers or a dress longer than the legs pool on it.")
 @click.option("--every", type=click.IntRange(0, 100000), default=10, show_default=True,
               help="Write frame_NNNN every K frames, frame_0000 being the start (0: none).")
 @click.option("--format", "fmt", type=click.Choice(["obj", "ply", "glb"]), default="obj", show_default=True,
@@ -108,8 +111,8 @@ def body_targets(body_path, girths, height, weight):
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary.")
 @click.pass_context
 @handle_errors
-def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, units, frames, refine, every, fmt,
-          preview, map_name, gif, outdir, json_path, quiet, gender, height, weight, definition, **girths):
+def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, units, frames, refine, ground, every,
+          fmt, preview, map_name, gif, outdir, json_path, quiet, gender, height, weight, definition, **girths):
     """Drape GARMENT (.obj/.ply) on a body and write the result to OUTDIR.
 
     The garment keeps its own size: on a bigger body it is stretched, on a
@@ -143,7 +146,8 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
         check_output_path(json_path, (".json",))
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
     opts = SimpleNamespace(garment=garment, body_path=body_path, material=material, rest=rest, transfer=transfer,
-                           collider=collider, pin=pin, units=units, frames=frames, refine=refine, every=every, fmt=fmt,
+                           collider=collider, pin=pin, units=units, frames=frames, refine=refine, ground=ground,
+                           every=every, fmt=fmt,
                            preview=preview, map_name=map_name, gif=gif, outdir=outdir, json_path=json_path, quiet=quiet,
                            gender=gender if gender_given else None, weight=weight, definition=definition,
                            targets=targets, t_start=t_start)
@@ -187,7 +191,8 @@ def _drape(o):
     progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
                    f"reading the body {o.body_path}" if o.body_path else "loading the default body")
     body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or tag_gender or "female", o.definition)
-    settings = DrapeSettings(refine=o.refine, **({} if o.frames is None else dict(max_frames=o.frames)))
+    settings = DrapeSettings(refine=o.refine, ground=o.ground,
+                             **({} if o.frames is None else dict(max_frames=o.frames)))
     progress.stage("placing the garment, pinning it, building the body's collision grid"
                    + ("" if kernels_cached() else "; the first run compiles the cloth kernels (about a minute)"))
     setup = prepare_drape(g, body, model, material=o.material, pin=pins, transfer=o.transfer, rest=o.rest,

@@ -294,14 +294,15 @@ def contact_velocity(x, xp, w, push, friction, keep_t, body=None, stick=False):
     return x, xp
 
 
-def sphere_contacts(x, w, v, b, skin, spheres, reach, max_push, velocity=None):
+def sphere_contacts(x, w, v, b, skin, spheres, reach, max_push, velocity=None, ground=None):
     """Contact half-spaces of the points near the spheres (fresh: every point queried).
 
     A point whose free vertices carry less than half its weight is skipped. Its nearest sphere (by
     signed distance d = |p - c| - r; at the centre the normal is +Y) gives the closest point q and
     normal n; a point with ``d < skin + reach`` gets the half-space
     ``n . p >= n . q + min(skin, d + max_push)``. Returns [(p, n, h)] in point order; given the spheres'
-    ``velocity`` (S, 3), also (P, 3) the velocity of each point's nearest sphere.
+    ``velocity`` (S, 3), also (P, 3) the velocity of each point's nearest sphere. ``ground`` (m): a still
+    plane y = ground, normal +Y, nearer than the spheres where p_y - ground is smaller.
     """
     planes = []
     u = np.zeros((v.shape[0], 3))
@@ -316,17 +317,19 @@ def sphere_contacts(x, w, v, b, skin, spheres, reach, max_push, velocity=None):
             n = d / dist if dist > 0 else np.array([0.0, 1.0, 0.0])
             if best is None or dist - r < best[0]:
                 best = (dist - r, n, np.array([cx, cy, cz]) + r * n, s)
+        if ground is not None and (best is None or pt[1] - ground < best[0]):
+            best = (pt[1] - ground, np.array([0.0, 1.0, 0.0]), np.array([pt[0], ground, pt[2]]), -1)
         if best is None or not best[0] < skin[p] + reach:
             continue
         d, n, q, s = best
         if velocity is not None:
-            u[p] = velocity[s]
+            u[p] = velocity[s] if s >= 0 else 0.0
         planes.append((p, n, n @ q + min(skin[p], d + max_push)))
     return planes if velocity is None else (planes, u)
 
 
 def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, max_push, c_contact, alpha_pins,
-                  segments=None, hinge_every=2, sphere_velocity=None, stick=False):
+                  segments=None, hinge_every=2, sphere_velocity=None, stick=False, ground=None):
     """One substep of the cloth kernel against sphere colliders, fresh contact memory (copies).
 
     ``cl``: dict with ``inv_mass gravity sp_i sp_j sp_rest sp_k sp_kd`` (and optionally the force hinges' ``h_i
@@ -341,7 +344,8 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     sweep visits segment 0's constraints then its contacts, then segment 1's, then segment 2's (the
     kernel's "Two threads"); None: one segment. ``sphere_velocity`` (S, 3) m/s: the spheres move, and each
     pushed vertex's contact velocity is taken relative to the push-weighted mean velocity of the spheres that
-    pushed it (:func:`contact_velocity`); ``stick``: position-level friction. Returns (x, xp).
+    pushed it (:func:`contact_velocity`); ``stick``: position-level friction; ``ground`` (m): a still ground
+    plane (:func:`sphere_contacts`). Returns (x, xp).
     """
     w = cl["inv_mass"]
     idx = np.stack([cl["sp_i"], cl["sp_j"]], axis=1)
@@ -355,10 +359,11 @@ def cloth_substep(x, xp, cl, pins, pts, dt, c_air, iterations, reach, friction, 
     v, b, skin, spheres = pts
     carry = None
     if sphere_velocity is not None:
-        planes, u = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push, velocity=sphere_velocity)
+        planes, u = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push, velocity=sphere_velocity,
+                                    ground=ground)
         carry = (u, np.zeros_like(x_new), np.zeros(len(x_new)))
     else:
-        planes = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push)
+        planes = sphere_contacts(x_new, w, v, b, skin, spheres, reach, max_push, ground=ground)
     n_c, n_p = len(cl["i"]), len(v)
     c_seg, p_seg = segments if segments is not None else ([0, n_c, n_c, n_c], [0, n_p, n_p, n_p])
     lam = np.zeros(len(cl["i"]))

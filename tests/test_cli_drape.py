@@ -162,6 +162,21 @@ def test_not_converged_exits_3(tmp_path):
     assert (tmp_path / "o" / "final.obj").is_file()
 
 
+def test_ground_under_the_feet_and_no_ground(tmp_path):
+    """The report gives the ground's height: 5 mm (twice the clearance and 1 mm) below the body's lowest point,
+    in the written body's coordinates; --no-ground: none."""
+    import trimesh
+
+    r = run(DEMO_SKIRT, "-o", tmp_path / "a", "--frames", 2, "--every", 0, "-q")
+    assert r.exit_code == 3, r.output
+    report = json.loads((tmp_path / "a" / "report.json").read_text())
+    sole = trimesh.load(tmp_path / "a" / "body.obj", process=False).vertices[:, 1].min()
+    assert report["ground_y_m"] == pytest.approx(sole - 0.005, abs=1e-6)
+    r = run(DEMO_SKIRT, "-o", tmp_path / "b", "--frames", 2, "--every", 0, "-q", "--no-ground")
+    assert r.exit_code == 3, r.output
+    assert json.loads((tmp_path / "b" / "report.json").read_text())["ground_y_m"] is None
+
+
 def test_divergence_exits_4_without_nan_files(tmp_path, monkeypatch):
     from vfit_engine.sim.solver_verlet import SolverVerlet
 

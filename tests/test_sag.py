@@ -81,7 +81,7 @@ def test_make_contacts_moves_the_half_space_out_by_the_sag():
     n_c, queries = _make_contacts(x, np.ones(n), v, b, np.full(n, skin), np.zeros((0, 4)), body.grid, True, reach,
                                   max_push, 0.0, st["p_last"], st["d_last"], st["c_n"], st["c_nq"], st["c_h"],
                                   st["c_list"], st["c_n2"], st["c_nq2"], st["c_h2"], 0, n, np.zeros((0, 3)),
-                                  np.zeros((0, 3)), np.zeros((0, 3)), sag, e)
+                                  np.zeros((0, 3)), np.zeros((0, 3)), sag, e, -np.inf)
     d, q, normal, _ = body.query(x, max_out=1.0, max_in=1.0)
     band = skin + reach
     touching = d - e < band

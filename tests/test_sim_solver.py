@@ -254,6 +254,46 @@ def test_two_threads_give_the_one_thread_result():
     assert np.all(np.isfinite(one.pos)) and _sphere_gap(one.pos).min() > 0
 
 
+def _sheet_on_the_ground(ground, slide=0.0, frames=60):
+    """A 30 cm sheet of 10 x 10 vertices dropped flat from 3 cm above the ground plane at y = ``ground``,
+    moving sideways (x) at ``slide`` m/s."""
+    pos, fv, fo = grid_polygons(10, 10, 0.3, 0.3)
+    pos[:, 1] = 0.03 if ground is None else ground + 0.03
+    model = Model.from_polygons(fv, fo, pos, "cotton")
+    solver = SolverVerlet(model, VerletSettings(substeps=8), ContactSettings(friction=0.8), ground=ground,
+                          points=contact_points(fv, fo, pos, spacing=0.015))
+    state = solver.init_state(1 / 480, vel=[slide, 0.0, 0.0])
+    for _ in range(frames):
+        solver.step_frame(state, 1 / 60)
+    return pos, solver, state
+
+
+def test_sheet_dropped_on_the_ground_rests_on_it_at_its_clearance():
+    """Free fall, then the ground: every vertex at rest at its clearance above the plane (the contact's
+    half-space y >= ground + skin, met exactly), where it landed (nothing to push it sideways)."""
+    ground = -0.8
+    pos, solver, state = _sheet_on_the_ground(ground)
+    assert solver.ground == ground
+    skin = solver.contact.skin
+    np.testing.assert_allclose(state.pos[:, 1], ground + skin, atol=1e-9)
+    np.testing.assert_allclose(state.pos[:, [0, 2]], pos[:, [0, 2]], atol=1e-9)
+    assert solver.max_speed(state) < 1e-6
+    # without the ground the same sheet falls on: y = y0 - g t^2 / 2 less the air's damping
+    _, free, fell = _sheet_on_the_ground(None)
+    assert free.ground is None and fell.pos[:, 1].max() < -1.0
+
+
+def test_friction_on_the_ground_stops_a_sliding_sheet():
+    """A sheet landing at 0.5 m/s sideways slides on the ground and stops: Coulomb friction (mu 0.8) takes
+    mu g per second at least, so it stops within v^2 / (2 mu g) = 1.6 cm of where it touched down."""
+    ground = 0.0
+    pos, _, state = _sheet_on_the_ground(ground, slide=0.5, frames=90)
+    moved = state.pos[:, 0] - pos[:, 0]
+    fall = np.sqrt(2 * 0.03 / 9.81)  # before touching down it drifted slide x fall time (less the air's damping)
+    assert np.all(moved > 0) and np.all(moved < 0.5 * fall + 0.5 ** 2 / (2 * 0.8 * 9.81) + 1e-3)
+    assert np.all(np.abs(state.pos[:, 1] - 0.002) < 1e-6) and np.abs(state.velocity()).max() < 1e-6
+
+
 def test_bad_inputs():
     pos, fv, fo = grid_polygons(3, 3)
     with pytest.raises(InputError):
@@ -269,6 +309,8 @@ def test_bad_inputs():
     model = Model.from_polygons(fv, fo, pos, "cotton")
     with pytest.raises(ValueError, match="spheres"):
         SolverVerlet(model, spheres=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="ground"):
+        SolverVerlet(model, ground=np.nan)
     for bad_settings in (dict(substeps=0), dict(gravity=(0.0, np.nan, 0.0)), dict(compression=1.0),
                          dict(shear_limit_deg=90.0), dict(slack=-0.1), dict(air_damping=-1.0)):
         with pytest.raises(ValueError):

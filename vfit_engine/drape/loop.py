@@ -107,7 +107,7 @@ def build_solver(setup, settings, garment=None):
     exact = setup.collider_kind == "mesh"
     solver = SolverVerlet(model, settings.solver, settings.contact, body=setup.collider if exact else None,
                           spheres=setup.spheres, points=points,
-                          colliders=() if setup.project is None else [setup.project])
+                          colliders=() if setup.project is None else [setup.project], ground=setup.ground)
     solver.sweep_from(setup.pins.indices)
     for zone, strain in setup.zones:
         # the cloth round an opening the body forces wider may stretch that far, and it starts there

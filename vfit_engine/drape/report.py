@@ -72,7 +72,8 @@ def drape_report(setup=None, result=None, diverged=None, interrupted=None, **con
         out.update(placement=setup.info["placement"], transfer=setup.info["transfer"], rest=setup.info["rest"],
                    garment_made_on=setup.info["made_on"], pins=setup.pins.info, openings=openings,
                    tight_openings=[o for o in openings if o["required_strain"] > 0],
-                   material=setup.material.to_dict(), collider=setup.collider_kind)
+                   material=setup.material.to_dict(), collider=setup.collider_kind,
+                   ground_y_m=setup.info.get("ground_y_m"))
     if diverged is not None:
         out.update(diverged=True, converged=False, message=str(diverged), frames=diverged.frame,
                    last_good_frame=diverged.last_good_frame)

@@ -68,6 +68,10 @@ class DrapeSettings:
         Relative margin of the sphere colliders (``spheres``, ``bone-spheres``).
     spheres_per_bone : int
         Spheres along each bone of the ``bone-spheres`` collider.
+    ground : bool
+        A still ground plane under the body's lowest point (its soles, standing) that the cloth rests on
+        (:func:`vfit_engine.drape.setup.ground_height`): trousers or a dress longer than the legs pool on it
+        instead of hanging below the feet, caught round them, and never settling.
     refine : int
         Simulate the cloth subdivided this many times (each polygon into quads round its centroid) and read the
         garment's own vertices back from it (:mod:`vfit_engine.drape.refine`): folds narrower than the
@@ -96,6 +100,7 @@ class DrapeSettings:
     pin_fit_strain: float = 0.015
     sphere_skin: float = 0.02
     spheres_per_bone: int = 4
+    ground: bool = True
     refine: int = 0
 
     def __post_init__(self):

@@ -17,7 +17,8 @@
 5. **openings** (:func:`vfit_engine.garment.openings.check_openings`): each opening smaller than the
    body part it goes round must stretch at least so much; the cloth round it may;
 6. **colliders**: the exact body mesh (always built: the metrics and the untangling use it) and, on
-   request, shapes fitted to the body (:mod:`vfit_engine.drape.colliders`).
+   request, shapes fitted to the body (:mod:`vfit_engine.drape.colliders`); the ground under the body
+   (:func:`ground_height`).
 """
 from __future__ import annotations
 
@@ -31,6 +32,15 @@ from vfit_engine.errors import InputError
 
 #: How the cloth's rest lengths are chosen (module docstring, step 3).
 REST_MODES = ("garment", "graded")
+#: The ground lies this much (m) more than twice the cloth's clearance below the body's lowest point: cloth caught
+#: under a sole keeps its clearance from both, instead of being pushed to and fro between them.
+GROUND_SLACK = 0.001
+
+
+def ground_height(body_surface, skin):
+    """Height (m, y) of the ground under ``body_surface`` (V, 3) m: ``2 skin + GROUND_SLACK`` below its lowest
+    point (its soles, standing; whatever is lowest in another pose)."""
+    return float(np.min(body_surface[:, 1])) - 2.0 * skin - GROUND_SLACK
 
 
 @dataclass
@@ -84,6 +94,8 @@ class DrapeSetup:
     body_parts : (V,) int64 or None
         The body part (index into :data:`vfit_engine.body.segment.PARTS`, -1 none) of every body
         surface vertex, to say where the cloth is tight.
+    ground : float or None
+        Height (m, y) of the ground plane under the body (:func:`ground_height`), None: none.
     """
 
     garment: object
@@ -102,6 +114,7 @@ class DrapeSetup:
     project: object = None
     info: dict = field(default_factory=dict)
     body_parts: np.ndarray | None = None
+    ground: float | None = None
 
     @property
     def rest_mesh(self):
@@ -183,10 +196,11 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     spheres = project = None
     if collider != "mesh":
         spheres, project = fitted_collider(collider, model, body, collide, st)
+    ground = ground_height(body.surface, st.contact.skin) if st.ground else None
     info = dict(placement=placement, transfer=tinfo, rest="graded" if graded else "garment",
-                made_on=made_on(binding, reference, body), setup_time_s=time.perf_counter() - t0)
+                made_on=made_on(binding, reference, body), ground_y_m=ground, setup_time_s=time.perf_counter() - t0)
     return DrapeSetup(garment, np.ascontiguousarray(rest_pos), np.ascontiguousarray(start), body, reference, tris,
-                      mat, pins, openings, zones, collide, collider, spheres, project, info, parts)
+                      mat, pins, openings, zones, collide, collider, spheres, project, info, parts, ground)
 
 
 def _pins(garment, rest_pos, placed, start, body, reference, tris, pin, graded, st):

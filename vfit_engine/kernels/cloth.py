@@ -102,9 +102,10 @@ ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", 
 #: m/s: the velocity of the body grid's vertices (``grid.tris`` numbering) and sphere_vel (S, 3) m/s the
 #: spheres' (their centres'), during the substeps; both (0, 3) for a still body (nothing to carry); body_sag
 #: (V,) m: the body's extra thickness at each grid vertex (its small bumps,
-#: :func:`vfit_engine.collide.sag.convex_sag`; (0,): none) and sag_max m its largest value.
+#: :func:`vfit_engine.collide.sag.convex_sag`; (0,): none) and sag_max m its largest value; ground m: the height of
+#: a still ground plane under the body (``-inf``: none; :func:`vfit_engine.kernels.contact_make._make_contacts`).
 ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres", "p_seg", "body_vel",
-                                             "sphere_vel", "body_sag", "sag_max"])
+                                             "sphere_vel", "body_sag", "sag_max", "ground"])
 
 #: Per-point contact memory (in/out): p_last (P, 3) m and d_last (P,) m (position and a lower bound
 #: of the signed distance at the last query; ``-inf`` forces one), c_n (P, 3) and c_nq (P,) m (the
@@ -442,4 +443,4 @@ def _contacts_of_segment(x, w, pts, grid, prm, st, g):
     st.counts[g, 0], st.counts[g, 3] = _make_contacts(
         x, w, pts.pt_v, pts.pt_b, pts.pt_skin, pts.spheres, grid, prm.use_grid, prm.reach, prm.max_push, prm.reuse,
         st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2, st.c_h2, pts.p_seg[g],
-        pts.p_seg[g + 1], pts.body_vel, pts.sphere_vel, st.c_u, pts.body_sag, pts.sag_max)
+        pts.p_seg[g + 1], pts.body_vel, pts.sphere_vel, st.c_u, pts.body_sag, pts.sag_max, pts.ground)

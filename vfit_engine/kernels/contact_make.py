@@ -101,10 +101,14 @@ def _sag_on_triangle(grid, body_sag, t, qx, qy, qz):
 @njit
 def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_push, reuse,
                    p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2, p0, p1, body_vel, sphere_vel, c_u,
-                   body_sag, sag_max):
+                   body_sag, sag_max, ground):
     """Contact half-spaces of the points ``p0 .. p1 - 1`` that may touch the body (step 3), listed in
     ``c_list`` from index ``p0``; returns (contacts, queries). Given the body's velocities (``body_vel``,
     ``sphere_vel``: not empty), a point queried afresh keeps the body's velocity at its closest point in ``c_u``.
+
+    ``ground`` (m; ``-inf``: none) is the height of a still ground plane (normal +y) under the body: one more
+    collider, the nearest of which gives a point its plane, as the spheres' and the body's nearest does. A plane
+    holds a triangle out wherever it holds its corners, so it needs no more than the points already there.
 
     Given ``body_sag`` (not empty) the body counts as that much thicker (blended at the closest point): the
     half-space moves out by it. A point found clear keeps as its bound the true distance less the largest
@@ -173,6 +177,12 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
                 d, qx, qy, qz, nx, ny, nz = ds, sqx, sqy, sqz, snx, sny, snz
                 if sphere_vel.shape[0] > 0:
                     ux, uy, uz = sphere_vel[s, 0], sphere_vel[s, 1], sphere_vel[s, 2]
+        if ground > -math.inf:
+            dh = py - ground
+            bound = min(bound, dh)
+            if dh < d:
+                d, qx, qy, qz, nx, ny, nz = dh, px, ground, pz, 0.0, 1.0, 0.0
+                ux = uy = uz = 0.0
         if c_u.shape[0] > 0:
             c_u[p, 0], c_u[p, 1], c_u[p, 2] = ux, uy, uz
         queries += 1

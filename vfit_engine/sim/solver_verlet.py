@@ -38,7 +38,8 @@
     shortest edges (an armhole edge 0.2 points over its allowance);
 
 * **contacts** with the body -- an exact triangle mesh (:class:`vfit_engine.collide.body_mesh.MeshCollider`)
-  and/or spheres -- of the cloth's vertices and of points spread over its triangles
+  and/or spheres -- and with the ground under it (a still plane, ``ground``) of the cloth's vertices and of
+  points spread over its triangles
   (:mod:`vfit_engine.sim.contact_points`), solved in the same loop as the constraints;
 * any other collider with ``project(x, x_prev, inv_mass)`` (ellipsoids, hulls) after each substep.
 
@@ -99,15 +100,21 @@ class SolverVerlet:
         Contact points; None: the cloth's vertices only.
     colliders : sequence
         Other colliders, each with ``project(x, x_prev, inv_mass)``, applied after every substep.
+    ground : float or None
+        Height (m, y) of a still ground plane the cloth rests on (normal +y); None: no ground.
     """
 
-    def __init__(self, model, settings=None, contact=None, body=None, spheres=None, points=None, colliders=()):
+    def __init__(self, model, settings=None, contact=None, body=None, spheres=None, points=None, colliders=(),
+                 ground=None):
         from vfit_engine.sim.contact_points import contact_points
 
         self.model = model
         self.settings = settings or VerletSettings()
         self.contact = contact or ContactSettings()
         self.colliders = list(colliders)
+        if ground is not None and not math.isfinite(ground):
+            raise ValueError(f"ground must be a finite height or None, got {ground!r}")
+        self._ground = -math.inf if ground is None else float(ground)  # the kernel's: -inf, none
         self.max_push = math.inf
         self.contact_queries = 0
         self.softened_fraction = 0.0
@@ -492,7 +499,7 @@ class SolverVerlet:
                          float(self.max_push), 1.0 - math.exp(-float(c.damping) * dt), float(c.reuse),
                          self.body is not None, int(self.settings.hinge_every), bool(c.stick))
         pts = ContactPoints(self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._p_seg, self._body_vel,
-                            self._sphere_vel, self._body_sag, self._sag_max)
+                            self._sphere_vel, self._body_sag, self._sag_max, self._ground)
         cst = ContactState(self._p_last, self._d_last, self._c_n, self._c_nq, self._c_h, self._c_list, self._push,
                            self._f, self._lam, self._active, self._c_n2, self._c_nq2, self._c_h2, self._c_live,
                            self._counts, self._hot, self._h_lam, self._h_active, self._c_u, self._push_u,
@@ -517,6 +524,11 @@ class SolverVerlet:
         """(3,) int64: constraints in the first half of the cloth, the second, and across
         (:mod:`vfit_engine.sim.partition`; the first two run on two threads)."""
         return np.diff(segments(segment_of(self._half, self._c_i, self._c_j, self._c_corner))[1])
+
+    @property
+    def ground(self):
+        """Height (m, y) of the ground plane the cloth rests on, None when there is none."""
+        return None if self._ground == -math.inf else self._ground
 
     @property
     def constraint_count(self):
