@@ -71,7 +71,7 @@ class DrapeSettings:
     ground : bool
         A still ground plane under the body's lowest point (its soles, standing) that the cloth rests on
         (:func:`vfit_engine.drape.setup.ground_height`): trousers or a dress longer than the legs pool on it
-        instead of hanging below the feet, caught round them, and never settling.
+        instead of hanging through where the floor would be.
     refine : int
         Simulate the cloth subdivided this many times (each polygon into quads round its centroid) and read the
         garment's own vertices back from it (:mod:`vfit_engine.drape.refine`): folds narrower than the

@@ -8,8 +8,8 @@ the same Gauss-Seidel loop, as in position based dynamics, Mueller et al. 2007):
        x+ = x + (1 - c)(x - x-) + (w f + g) dt^2
     2. pinned particles follow their targets
     3. contact generation: every contact point p -- a cloth vertex, or a point of a cloth
-       triangle p = sum_k b_k x_k -- that may be within ``skin_p + reach`` of the body gets the
-       body's closest point q and outward normal n, and the half-space
+       triangle p = sum_k b_k x_k -- that may be within ``skin_p + reach`` of the body (or the ground) gets
+       the nearer one's closest point q and outward normal n, and the half-space
            n . p >= n . q + min(skin_p, d + max_push)        (d its signed distance now)
        (a point inside comes out by at most ``max_push`` per substep)
     4. ``iterations`` x { every hinge too stiff for step 1 (an angle constraint of compliance 1 / k:
