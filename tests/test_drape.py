@@ -155,6 +155,27 @@ def test_drape_is_deterministic(female, demo_skirt, skirt_run):
     assert not a.converged and a.frames == 20
 
 
+def test_a_drape_still_moving_after_slow_frames_sweeps_more(skirt_run):
+    """From frame slow_frames + 1 a drape that has not settled sweeps slow_iterations times a substep: the frames
+    before are the same bytes, the next ones differ, and the report says how many it swept at the end."""
+    from vfit_engine.drape import DrapeSettings, run_drape
+
+    setup, _ = skirt_run
+    base = DrapeSettings(max_frames=6)
+    seen = {}
+
+    def keep(tag):
+        return lambda frame, pos, moving: seen.setdefault(tag, []).append(pos.copy())
+
+    plain = run_drape(setup, base, on_frame=keep("plain"))
+    more = run_drape(setup, DrapeSettings(max_frames=6, slow_frames=3, slow_iterations=base.solver.iterations + 6),
+                     on_frame=keep("more"))
+    assert plain.info["iterations"] == base.solver.iterations and more.info["iterations"] == base.solver.iterations + 6
+    for k in range(3):
+        assert seen["plain"][k].tobytes() == seen["more"][k].tobytes()
+    assert not np.array_equal(seen["plain"][3], seen["more"][3])
+
+
 def test_divergence_is_detected_at_once(skirt_run):
     from vfit_engine.drape import DrapeDiverged, DrapeSettings, run_drape
 
@@ -236,6 +257,11 @@ def test_bad_set_up_inputs(female, demo_skirt):
                           (dict(pin=[0, 10 ** 6]), "out of range"), (dict(material="tweed"), "material")):
         with pytest.raises(InputError, match=match):
             prepare_drape(demo_skirt, body, model, **kwargs)
+    from vfit_engine.drape import DrapeSettings
+
+    for name in ("max_frames", "settle_frames", "slow_frames", "slow_iterations"):
+        with pytest.raises(InputError, match=f"{name} must be >= 1"):
+            DrapeSettings(**{name: 0})
 
 
 def test_transferred_start_agrees_with_the_pins(female, demo_skirt):

@@ -226,6 +226,8 @@ def run_drape(setup, settings=None, on_frame=None):
     ramp = max(int(st.ramp_frames), 1)
     converged, frame = False, 0
     for frame in range(1, int(st.max_frames) + 1):
+        if frame == st.slow_frames + 1 and st.slow_iterations > solver.settings.iterations:
+            solver.set_iterations(st.slow_iterations)  # still moving: DrapeSettings.slow_frames says why
         alpha = min(frame / ramp, 1.0)
         push = st.push_start + alpha * (st.push_end - st.push_start)
         solver.max_push = push
@@ -255,7 +257,8 @@ def run_drape(setup, settings=None, on_frame=None):
                 untangle=untangle_info, contact_points=solver.points.count, contact_queries=int(solver.contact_queries),
                 softened_fraction=solver.softened_fraction, implicit_hinges=round(solver.implicit_hinges, 4),
                 softened_hinges=round(solver.softened_hinges, 4),
-                bending_kept=round(solver.bending_kept, 4), constraints=int(solver.constraint_count))
+                bending_kept=round(solver.bending_kept, 4), constraints=int(solver.constraint_count),
+                iterations=int(solver.settings.iterations))
     return DrapeResult(pos, converged, frame, int(state.step_count), float(state.time), wall, setup_time,
                        settle.figures(), drape_metrics(setup, pos), info,
                        sim.garment.mesh.with_verts(state.pos) if st.refine else None)

@@ -464,6 +464,12 @@ class SolverVerlet:
         self._lam[:] = 0.0
         return State(x, x - v * dt + 0.5 * a0 * dt * dt, dt)
 
+    def set_iterations(self, iterations):
+        """Sweep the constraints ``iterations`` times per substep from the next step on."""
+        import dataclasses
+
+        self.settings = dataclasses.replace(self.settings, iterations=int(iterations))
+
     # -- stepping ---------------------------------------------------------------------------
     def step(self, state, dt):
         """Advance ``state`` in place by one substep of ``dt`` (s); returns it."""
