@@ -55,6 +55,7 @@ round an opening the body forces wider or to admit a start shape, and ramp the p
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -466,8 +467,6 @@ class SolverVerlet:
 
     def set_iterations(self, iterations):
         """Sweep the constraints ``iterations`` times per substep from the next step on."""
-        import dataclasses
-
         self.settings = dataclasses.replace(self.settings, iterations=int(iterations))
 
     # -- stepping ---------------------------------------------------------------------------
