@@ -499,7 +499,7 @@ def test_auto_spheres_lie_inside_and_cover(body_model, female):
 
 def test_yarn_strain_and_shear_are_against_the_garment_as_given():
     from vfit_engine.drape.metrics import corner_angles, shear, vertex_strain, yarn_strain
-    from vfit_engine.garment.springs import grid_polygons
+    from vfit_engine.sim.springs import grid_polygons
     from vfit_engine.io.mesh import MeshData
 
     pos, fv, fo = grid_polygons(5, 4, 0.4, 0.3)  # 10 cm quads

@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from vfit_engine.garment.openings import check_openings
-from vfit_engine.garment.springs import grid_polygons
+from vfit_engine.sim.springs import grid_polygons
 from vfit_engine.geometry import closed_loops
 from vfit_engine.io.mesh import mesh_from_faces
 

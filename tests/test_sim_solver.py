@@ -6,7 +6,7 @@ import trimesh
 
 from vfit_engine.collide.spheres import SphereCollider
 from vfit_engine.errors import InputError
-from vfit_engine.garment.springs import (BEND, SHEAR, STRUCTURAL, build_springs, grid_polygons, polygon_areas,
+from vfit_engine.sim.springs import (BEND, SHEAR, STRUCTURAL, build_springs, grid_polygons, polygon_areas,
                                          spring_constants, vertex_masses)
 from vfit_engine.sim.model import Model
 from vfit_engine.sim.contact_points import contact_points

@@ -131,7 +131,7 @@ def _rings(tris, keep):
 def _heights(points, verts, normals, rings):
     """Signed height (k,) m of each point over the triangles ``rings`` (k, r, 3) round its nearest vertex, and
     the skin's unit normal (k, 3) at the closest point (module docstring)."""
-    from vfit_engine.garment.pins import closest_point_barycentric
+    from vfit_engine.geometry import closest_point_barycentric
 
     k, r = rings.shape[:2]
     p = np.repeat(points, r, axis=0)

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vfit_engine.garment.arap import rigid_to_dual_quat
+from vfit_engine.rotations import rigid_to_dual_quat
 
 #: Tolerance of the rigidity check for DQS: ``|R^T R - I|`` and ``|det R - 1|``.
 RIGID_TOL = 1e-6

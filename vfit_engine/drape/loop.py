@@ -121,7 +121,7 @@ def build_solver(setup, settings, garment=None):
 
 def _untangled_start(setup, settings, model):
     """The start moved out of the body (step 2), pins on their targets; (positions, info)."""
-    from vfit_engine.garment.springs import STRUCTURAL
+    from vfit_engine.sim.springs import STRUCTURAL
     from vfit_engine.sim.untangle import untangle
 
     start = setup.start.copy()

@@ -46,7 +46,7 @@ MAP_UNITS = {"strain": "fraction", "shear_deg": "deg", "ease_mm": "mm", "pressur
 def edge_area_shares(mesh):
     """(E,) float64, m^2: each edge's share of the rest area, sum of 2 A_f / n_f over its polygons
     (``mesh.edges()`` order): a square grid's edge of side h gets h^2, a strip h wide."""
-    from vfit_engine.garment.springs import polygon_areas
+    from vfit_engine.sim.springs import polygon_areas
 
     edges = mesh.edges()
     fo, fv = mesh.face_offsets, mesh.face_verts
@@ -66,7 +66,7 @@ def edge_area_shares(mesh):
 
 def vertex_areas(mesh, pos):
     """(n,) float64, m^2: each vertex's share of the polygons' area at ``pos`` (A_f / n_f per corner)."""
-    from vfit_engine.garment.springs import polygon_areas
+    from vfit_engine.sim.springs import polygon_areas
 
     sizes = mesh.face_sizes()
     area = polygon_areas(mesh.face_verts, mesh.face_offsets, pos)

@@ -219,7 +219,7 @@ def release_stretched(mesh, idx, target, pin_strain, groups=None, springs=None):
     -------
     (p,) bool
     """
-    from vfit_engine.garment.springs import build_springs
+    from vfit_engine.sim.springs import build_springs
 
     # every spring pair (edges, quad diagonals, second neighbours), so that a released pin
     # is not left between two pins that are still too far apart
@@ -265,7 +265,7 @@ def fit_pins(mesh, idx, att, body_verts, body_tris, skin, pin_strain, fit_strain
         ``released_stretched``, ``refitted_groups`` (loops and patches) and ``lifted_for_chords``
         (:func:`lift_chords`) counts.
     """
-    from vfit_engine.garment.springs import build_springs
+    from vfit_engine.sim.springs import build_springs
 
     target = att.positions(body_verts, body_tris, min_offset=skin)
     groups = np.full(idx.size, -1, dtype=np.int64)

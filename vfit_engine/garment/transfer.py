@@ -32,14 +32,8 @@ import numpy as np
 
 from vfit_engine.body.model import N_BODY, N_VERTS, BodyModel
 from vfit_engine.errors import InputError
-from vfit_engine.garment.arap import (
-    _incidence,
-    arap_rotations,
-    check_points,
-    cotangent_weights,
-    dual_quat_to_rigid,
-    rigid_to_dual_quat,
-)
+from vfit_engine.garment.arap import _incidence, arap_rotations, check_points, cotangent_weights
+from vfit_engine.rotations import dual_quat_to_rigid, rigid_to_dual_quat
 
 METHODS = ("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none")
 #: Nearest body vertices per garment vertex; 6 is the sweet spot found by the garment-adaptation seed.

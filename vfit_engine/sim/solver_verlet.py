@@ -313,7 +313,7 @@ class SolverVerlet:
             The compliance of the hinges solved as constraints, 0 for the others.
         """
         m = self.model
-        from vfit_engine.garment.springs import SHEAR, STRUCTURAL
+        from vfit_engine.sim.springs import SHEAR, STRUCTURAL
 
         k = np.array(m.spring_k)
         # the stretch constraints hold the stretch stiffness; with a shear limit the quads trellis

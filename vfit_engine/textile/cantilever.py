@@ -35,7 +35,7 @@ def peirce_overhang(c, angle=ANGLE):
 
 
 def _strip_model(material, overhang, edge):
-    from vfit_engine.garment.springs import grid_polygons
+    from vfit_engine.sim.springs import grid_polygons
     from vfit_engine.sim.model import Model
 
     # columns at x = -h, 0 (on the platform, pinned), h, ..., n h; the clamp at -h / 2 (module docstring)

@@ -5,7 +5,7 @@ Shapes::
     annulus(inner, outer, edge)   -> pos (n, 3) m, face_verts (k,), face_offsets (m+1,), ring (n,)   quads
     disc(radius, edge, seed)      -> pos (n, 3) m, face_verts (k,), face_offsets (m+1,)             triangles
 
-The cantilever's strip is a grid of quads (:func:`vfit_engine.garment.springs.grid_polygons`); the disc of
+The cantilever's strip is a grid of quads (:func:`vfit_engine.sim.springs.grid_polygons`); the disc of
 near-equilateral triangles measures the bending model without a quad grid's directions.
 """
 from __future__ import annotations
