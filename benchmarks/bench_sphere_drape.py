@@ -58,7 +58,7 @@ def make_drape(n, material="cotton", substeps=8, iterations=None, friction=0.5, 
         The cloth's fan triangles (for the surface penetration).
     """
     from vfit_engine.sim.springs import grid_polygons
-    from vfit_engine.io.mesh import MeshData
+    from vfit_engine.io.meshdata import MeshData
     from vfit_engine.sim.contact_points import contact_points
     from vfit_engine.sim.model import Model
     from vfit_engine.sim.solver_verlet import ContactSettings, SolverVerlet, VerletSettings

@@ -23,7 +23,7 @@ def vertex_normals(verts, faces, face_offsets=None, outward=False):
     faces : (T, 3) int64 triangles, or (k,) int64 flat polygon corners with ``face_offsets``
     face_offsets : (m + 1,) int64 or None
         CSR offsets of the polygons in ``faces`` (the layout of
-        :class:`vfit_engine.io.mesh.MeshData`); None when ``faces`` are triangles.
+        :class:`vfit_engine.io.meshdata.MeshData`); None when ``faces`` are triangles.
     outward : bool
         Flip all normals if, summed over the vertices the faces use, they point towards those
         vertices' centroid: for a closed surface whose winding is not known (the body).

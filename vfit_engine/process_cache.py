@@ -1,6 +1,6 @@
 """What a worker process keeps between its jobs: the body model, the bodies it built, their fit tables.
 
-A size run (:mod:`vfit_engine.fit.sizes`) and a batch (:mod:`vfit_engine.batch`) send many drapes to a few
+A size run (:mod:`vfit_engine.sizes`) and a batch (:mod:`vfit_engine.batch`) send many drapes to a few
 long-lived processes. Loading the body model (~0.5 s), solving a body to measurements (0.3-1 s) and
 slicing a body's girth planes for the fit table (~0.2 s) are the same for every drape on that body, so
 each process does them once and keeps them here::

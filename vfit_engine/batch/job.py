@@ -197,7 +197,7 @@ def _known(mapping, keys, where):
 
 
 def _garments(entries, base, path):
-    from vfit_engine.fit.sizes import parse_sizes
+    from vfit_engine.sizes import parse_sizes
 
     if isinstance(entries, (str, dict)):
         entries = [entries]

@@ -112,7 +112,7 @@ def connect(workers=None, scheduler=None, retries=2):
             with client:
                 yield client, len(client.scheduler_info()["workers"])
             return
-        from vfit_engine.fit.sizes import default_workers
+        from vfit_engine.sizes import default_workers
 
         n = int(workers or default_workers())
         with local_cluster(n) as cluster, Client(cluster, set_as_default=False) as client:

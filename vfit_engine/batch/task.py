@@ -6,7 +6,7 @@
 
 The drape is ``vfit drape``'s path (:func:`vfit_engine.drape.prepare_drape`, :func:`run_drape`, the
 fit table of :mod:`vfit_engine.fit.table`) without its files; a task with a size first grades the
-garment to that size as ``vfit size`` does (:func:`vfit_engine.fit.sizes.grade`, the size body at the
+garment to that size as ``vfit size`` does (:func:`vfit_engine.sizes.grade`, the size body at the
 customer's height). On a cluster the body is a task of its own (:func:`build_body`), built once for
 all the drapes on it and handed to them by Dask; run alone, a task builds it. The worker keeps the body
 model, the size bodies and the fit tables (:mod:`vfit_engine.process_cache`).
@@ -100,7 +100,7 @@ def run_task(job, built=None):
 def _sized(garment, model, body, gender, size):
     """The garment graded to ``size`` at the customer's height, and that size's body (its reference)."""
     from vfit_engine.body.measure import stature
-    from vfit_engine.fit.sizes import grade, size_body, size_gender
+    from vfit_engine.sizes import grade, size_body, size_gender
 
     key_gender = size_gender(gender)
     height = round(stature(body.verts), 4)

@@ -10,7 +10,7 @@ from .model import N_BODY, N_VERTS, BodyModel
 
 def body_mesh(model: BodyModel, verts: np.ndarray):
     """MeshData of the visible body: the 13,380 body vertices in hm08 order, its quads and UVs."""
-    from ..io.mesh import mesh_from_faces
+    from ..io.meshdata import mesh_from_faces
 
     return mesh_from_faces(np.asarray(verts, dtype=np.float64)[:N_BODY], model.body_quads,
                            uvs=model.uvs, face_uvs=model.body_quad_uvs)

@@ -19,9 +19,6 @@ import dataclasses
 
 import numpy as np
 
-#: Most levels (each multiplies the polygons by ~4 and the time by ~3-5: 2.3-3.7 per frame, and more frames to settle).
-MAX_LEVELS = 2
-
 
 def subdivide(mesh):
     """One level of linear subdivision of a polygon mesh.
@@ -41,7 +38,7 @@ def subdivide(mesh):
     """
     from scipy.sparse import csr_matrix
 
-    from vfit_engine.io.mesh import MeshData
+    from vfit_engine.io.meshdata import MeshData
 
     n = mesh.n_verts
     fo, fv = np.asarray(mesh.face_offsets, np.int64), np.asarray(mesh.face_verts, np.int64)

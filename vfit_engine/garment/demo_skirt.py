@@ -68,7 +68,7 @@ def flared_skirt(body_verts, body_tris, waist=WAIST, hips=HIPS, hem=HEM, length=
 
     Returns
     -------
-    vfit_engine.io.mesh.MeshData
+    vfit_engine.io.meshdata.MeshData
         ``rows * around`` vertices in rings from the waist down, each ring starting at the centre
         back and running round through the body's left (+x); ``(rows - 1) * around`` quads facing
         outward; UVs.
@@ -80,7 +80,7 @@ def flared_skirt(body_verts, body_tris, waist=WAIST, hips=HIPS, hem=HEM, length=
     """
     from vfit_engine.body.levels import body_levels
     from vfit_engine.body.model import N_BODY
-    from vfit_engine.io.mesh import mesh_from_faces
+    from vfit_engine.io.meshdata import mesh_from_faces
     from vfit_engine.section import MeshSections
 
     v = np.ascontiguousarray(np.asarray(body_verts, dtype=np.float64)[:N_BODY])
@@ -216,10 +216,10 @@ def tube_skirt(body_verts, body_tris, around=48, rows=10, clearance=0.03, below_
 
     Returns
     -------
-    vfit_engine.io.mesh.MeshData
+    vfit_engine.io.meshdata.MeshData
     """
     from ..body.levels import body_levels
-    from ..io.mesh import mesh_from_faces
+    from ..io.meshdata import mesh_from_faces
 
     lv = body_levels(body_verts, body_tris)
     top, bottom = lv["waist_y"], lv["crotch_y"] - below_crotch

@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from vfit_engine.errors import InputError
-from vfit_engine.io.mesh import MAX_VERTS, MeshData, read_mesh
+from vfit_engine.io.mesh import read_mesh
+from vfit_engine.io.meshdata import MAX_VERTS, MeshData
 from vfit_engine.units import LENGTH_UNITS
 
 #: A garment of more than this many pieces, with fewer than SOUP_FACES_PER_PIECE faces each on average, is

@@ -28,7 +28,7 @@ import numpy as np
 
 from vfit_engine.errors import InputError
 from vfit_engine.io.atomic import atomic_write
-from vfit_engine.io.mesh import MAX_VERTS, MeshData
+from vfit_engine.io.meshdata import MAX_VERTS, MeshData
 
 #: printf format of one coordinate (see the module docstring for why 9 digits).
 FLOAT_FORMAT = "%.9g"
