@@ -147,14 +147,14 @@ def test_grade_is_the_drape_set_up_graded_rest_and_places_on_its_size_body(body_
 
 @needs_shared
 def test_a_diverged_size_has_a_status_and_no_verdict(body_model, monkeypatch):
-    import vfit_engine.drape as drape
+    import vfit_engine.sizes as sizes
     from vfit_engine.drape import DrapeDiverged
     from vfit_engine.sizes import try_sizes
 
     def diverge(setup, settings=None, on_frame=None):
         raise DrapeDiverged("simulation diverged at frame 3 (a vertex at 99 m/s); last good frame 2", frame=3)
 
-    monkeypatch.setattr(drape, "run_drape", diverge)
+    monkeypatch.setattr(sizes, "run_drape", diverge)  # the name the size run calls
     res = try_sizes(SUIT, {"gender": "male"}, sizes=["M"], workers=1, model=body_model)
     (m,) = res["sizes"]
     assert m["status"] == "diverged" and m["fit"] is None and "diverged at frame 3" in m["message"]

@@ -29,7 +29,15 @@ import json
 import math
 from pathlib import Path
 
-from vfit_engine.errors import InputError
+import yaml
+
+from vfit_engine.body.gender import parse_gender
+from vfit_engine.drape.colliders import COLLIDERS
+from vfit_engine.errors import InputError, VfitError
+from vfit_engine.garment.mhclo import parse_mhclo
+from vfit_engine.garment.transfer import METHODS
+from vfit_engine.sim.materials import resolve_material
+from vfit_engine.sizes import parse_sizes
 
 #: Body girths a body spec may give, cm (``vfit morph``'s options; tests hold the two lists equal).
 GIRTHS = ("bust", "underbust", "waist", "hips", "neck", "upper_arm", "thigh", "calf")
@@ -132,7 +140,6 @@ def read_document(path):
     try:
         if path.suffix.lower() == ".json":
             return json.loads(text)
-        import yaml
 
         return yaml.safe_load(text)
     except ValueError as exc:  # json.JSONDecodeError
@@ -197,8 +204,6 @@ def _known(mapping, keys, where):
 
 
 def _garments(entries, base, path):
-    from vfit_engine.sizes import parse_sizes
-
     if isinstance(entries, (str, dict)):
         entries = [entries]
     if not isinstance(entries, list) or not entries:
@@ -233,9 +238,6 @@ def _garments(entries, base, path):
 def _tag_gender(file):
     """The garment's gender from the tags of the ``.mhclo`` beside it (None: none, or unreadable -- the
     worker then reports the garment's own error)."""
-    from vfit_engine.errors import VfitError
-    from vfit_engine.garment.mhclo import parse_mhclo
-
     mhclo = file.with_suffix(".mhclo")
     try:
         return parse_mhclo(mhclo).gender if mhclo.is_file() else None
@@ -245,8 +247,6 @@ def _tag_gender(file):
 
 def _material(spec, base, where):
     """(the material as the worker takes it, what identifies it in a task id)."""
-    from vfit_engine.sim.materials import resolve_material
-
     spec = str(spec)
     if spec.lower().endswith(".json"):
         file = (base / spec).resolve()
@@ -342,8 +342,6 @@ def body_spec(spec, where, base):
 
 
 def _gender(value, where):
-    from vfit_engine.body.gender import parse_gender
-
     try:
         return parse_gender(value)
     except ValueError as exc:
@@ -351,9 +349,6 @@ def _gender(value, where):
 
 
 def _drape_options(opts, path):
-    from vfit_engine.drape.colliders import COLLIDERS
-    from vfit_engine.garment.transfer import METHODS
-
     where = f"{path}: drape"
     if not isinstance(opts, dict):
         raise InputError(f"{where}: give a mapping of drape options ({', '.join(DRAPE_KEYS)})")

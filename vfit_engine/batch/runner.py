@@ -36,9 +36,15 @@ import logging
 import threading
 import time
 
+import dask
+from distributed import Client, LocalCluster, as_completed
+from distributed.diagnostics.plugin import WorkerPlugin
+
+from vfit_engine import process_cache
 from vfit_engine.batch.results import ResultStore, flat_row
 from vfit_engine.batch.task import blank_row, build_body, run_task
 from vfit_engine.errors import InputError
+from vfit_engine.sizes import default_workers
 
 #: Environment of the local cluster's worker processes (read when they import Numba / BLAS).
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -69,14 +75,10 @@ class Summary:
 def _warm_up():
     """Load the body model and kernels in a thread of a fresh worker (its first task waits for the lock in
     :mod:`vfit_engine.process_cache` instead of loading them twice)."""
-    from vfit_engine import process_cache
-
     threading.Thread(target=process_cache.warm_up, name="vfit-warm-up", daemon=True).start()
 
 
 def _plugin():
-    from distributed.diagnostics.plugin import WorkerPlugin
-
     class WarmUp(WorkerPlugin):
         name = "vfit-warm-up"
 
@@ -89,8 +91,6 @@ def _plugin():
 def local_cluster(n_workers):
     """A LocalCluster of ``n_workers`` processes of one thread (and one Numba thread) each, no dashboard,
     only its errors logged (a worker's death is a retry, reported in the task's row if it matters)."""
-    from distributed import LocalCluster
-
     return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
                         silence_logs=logging.ERROR, env=dict(WORKER_ENV))
 
@@ -99,9 +99,6 @@ def local_cluster(n_workers):
 def connect(workers=None, scheduler=None, retries=2):
     """A Dask client: on the scheduler at ``scheduler`` (an address), else on a LocalCluster of ``workers``
     processes (None: the cores). Yields (client, number of workers)."""
-    import dask
-    from distributed import Client
-
     with dask.config.set(dict(DASK_CONFIG, **{"distributed.scheduler.allowed-failures": int(retries)})):
         if scheduler:
             try:
@@ -112,7 +109,6 @@ def connect(workers=None, scheduler=None, retries=2):
             with client:
                 yield client, len(client.scheduler_info()["workers"])
             return
-        from vfit_engine.sizes import default_workers
 
         n = int(workers or default_workers())
         with local_cluster(n) as cluster, Client(cluster, set_as_default=False) as client:
@@ -169,8 +165,6 @@ def run_batch(job, outdir, workers=None, scheduler=None, retries=2, keep_meshes=
 def _run(client, todo, store, retries, keep_meshes, on_task):
     """Submit ``todo`` in order through a window of :func:`_window` tasks (a million futures at once would
     hold the client's and the scheduler's memory for nothing) and write each row as its task finishes."""
-    from distributed import as_completed
-
     client.register_plugin(_plugin())
     queue, futures, bodies = iter(todo), {}, {}
 

@@ -11,6 +11,7 @@ Everything is batched NumPy (one ``np.linalg.svd`` over (n, 3, 3)); on the hm08 
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
 
 from vfit_engine.errors import InputError
 
@@ -73,8 +74,6 @@ def cotangent_weights(verts, tris, min_weight=MIN_COT_WEIGHT):
 
 def _incidence(edges, n_verts):
     """Sparse (n_verts, e) matrix with a 1 at both ends of every edge."""
-    from scipy import sparse
-
     e = len(edges)
     rows = np.concatenate([edges[:, 0], edges[:, 1]])
     cols = np.concatenate([np.arange(e), np.arange(e)])

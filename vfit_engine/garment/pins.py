@@ -18,9 +18,11 @@ Pins per piece (``auto_pins``), at the body levels of :func:`vfit_engine.body.le
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from vfit_engine.body.levels import Sections, body_center_xz, body_levels
 from vfit_engine.errors import InputError
+from vfit_engine.garment.garment import piece_labels
 from vfit_engine.geometry import boundary_loops, closest_point_barycentric, vertex_normals, winding_number
 
 #: Smallest Y component of the body normal counted as "facing up" in the shoulder region.
@@ -46,8 +48,6 @@ def _waist_loop(mesh, mask, surf, sec, x_c):
 
 
 def _shoulder_pins(mesh, mask, v, surf_idx, normals, levels):
-    from scipy.spatial import cKDTree
-
     lo, hi = levels["armpit_y"], levels["neck_y"]
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return np.zeros(0, np.int64)
@@ -89,7 +89,6 @@ def auto_pins(mesh, body_verts, body_tris, kind="auto", pieces=None):
     """
     if kind not in ("auto", "top", "bottom"):
         raise ValueError(f"kind must be auto, top or bottom, not {kind!r}")
-    from vfit_engine.garment.garment import piece_labels
 
     v = np.asarray(body_verts, dtype=np.float64)
     tris = np.asarray(body_tris, dtype=np.int64)
@@ -155,8 +154,6 @@ def attach_to_body(points, body_verts, body_tris, candidates=16):
     bary : (p, 3) float64
         Non-negative, summing to 1.
     """
-    from scipy.spatial import cKDTree
-
     pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
     v = np.asarray(body_verts, dtype=np.float64)
     tris = np.asarray(body_tris, dtype=np.int64)

@@ -26,13 +26,17 @@ vertices, when given, are ignored there.
 """
 from __future__ import annotations
 
+import time
 from functools import lru_cache
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from vfit_engine.body.model import N_BODY, N_VERTS, BodyModel
+from vfit_engine.collide.body_mesh import mesh_normals
 from vfit_engine.errors import InputError
 from vfit_engine.garment.arap import _incidence, arap_rotations, check_points, cotangent_weights
+from vfit_engine.garment.mhclo import evaluate_mhclo
 from vfit_engine.rotations import dual_quat_to_rigid, rigid_to_dual_quat
 
 METHODS = ("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none")
@@ -71,8 +75,6 @@ class BodyFrames:
     def tree(self):
         """scipy cKDTree over the source body vertices (built on first use)."""
         if self._tree is None:
-            from scipy.spatial import cKDTree
-
             self._tree = cKDTree(self.source)
         return self._tree
 
@@ -191,8 +193,6 @@ def _mhclo_top(binding):
 
 
 def _mhclo_fit(binding, body, which):
-    from vfit_engine.garment.mhclo import evaluate_mhclo
-
     top = _mhclo_top(binding)
     if body.shape[0] <= top:
         raise InputError(
@@ -288,10 +288,6 @@ def restore_clearance(garment_verts, moved_verts, reference_verts, body_verts, b
     restored : (n,) float64, m
         Distance each vertex was moved out.
     """
-    from scipy.spatial import cKDTree
-
-    from vfit_engine.collide.body_mesh import mesh_normals
-
     ref = np.ascontiguousarray(reference_verts[:N_BODY], dtype=np.float64)
     body = np.ascontiguousarray(body_verts[:N_BODY], dtype=np.float64)
     src = np.asarray(garment_verts, dtype=np.float64)
@@ -337,8 +333,6 @@ def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, meth
         identity and is not evaluated), ``time_s``, ``max_move_mm``, ``mean_move_mm``,
         ``clearance_restored_mm`` (max and mean over the vertices moved out; None when skipped).
     """
-    import time
-
     if method not in METHODS:
         raise InputError(f"unknown transfer method {method!r}; use one of {', '.join(METHODS)}")
     t0 = time.perf_counter()

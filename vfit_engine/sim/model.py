@@ -12,6 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from vfit_engine.errors import InputError
+from vfit_engine.sim.bending import build_hinges
+from vfit_engine.sim.materials import resolve_material
+from vfit_engine.sim.springs import build_springs, polygon_corners, spring_constants, vertex_masses
 
 
 def _frozen(a, dtype, shape_tail=None, name="array"):
@@ -144,10 +147,6 @@ class Model:
             Texture coordinates per face corner: warp and weft follow them where they are a sewing
             pattern (:mod:`vfit_engine.sim.bending`).
         """
-        from vfit_engine.sim.bending import build_hinges
-        from vfit_engine.sim.springs import build_springs, polygon_corners, spring_constants, vertex_masses
-        from vfit_engine.sim.materials import resolve_material
-
         material = resolve_material(material)
         springs = build_springs(face_verts, face_offsets, rest_pos)
         k, kd = spring_constants(springs, material.stiffness, material.damping)
