@@ -7,7 +7,8 @@ the garment over it; a moving body (``body_frames``, an animated fitting) is dra
 not move keeps its exact pixels and nothing flickers. A counter and a progress line under the
 picture say where the animation is.
 
-Importing this module is cheap; numba and Pillow are imported when an animation is made.
+Importing this module imports numba and Pillow (through :mod:`vfit_engine.preview`); the CLI imports it
+inside its commands, so ``vfit --help`` does not.
 """
 from __future__ import annotations
 

@@ -14,7 +14,8 @@ supersampling: the garment hides the body only where it is nearer to the viewer.
 and the colour bar's frame are in :mod:`vfit_engine.preview_text`; :mod:`vfit_engine.animation`
 draws frames of a drape with the same pieces.
 
-Importing this module is cheap; numba and Pillow are imported when a picture is made.
+Importing this module imports numba (the rasterizer's kernels) and Pillow; the CLI imports it inside its
+commands, so ``vfit --help`` does not.
 """
 from __future__ import annotations
 

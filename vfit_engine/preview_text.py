@@ -3,7 +3,6 @@
 Text is drawn with Pillow's default font (scalable with FreeType, else its small bitmap font
 enlarged), so a picture needs no font file and looks the same on every machine. Everything is
 sized from the picture's height, so captions stay legible from 300 x 150 to 8000 x 8000 pixels.
-Pillow is imported when a picture is made.
 """
 from __future__ import annotations
 
