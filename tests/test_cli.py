@@ -121,6 +121,19 @@ def test_choices_tie_to_the_engine():
         assert choice_of(command, "definition") == DEFINITIONS, command
 
 
+def test_body_options_tie_to_the_engine():
+    """vfit morph's girth options are the engine's girths, and its ranges those a batch job checks."""
+    from vfit_cli._common import Quantity
+    from vfit_cli.morph import GIRTH_OPTIONS
+    from vfit_engine.batch.job import RANGES
+    from vfit_engine.body.measure import NAMES
+
+    assert GIRTH_OPTIONS == tuple(n.replace("-", "_") for n in NAMES if n != "height")
+    ranges = {p.name: (p.type.lo, p.type.hi) for path, p in cli_params()
+              if path == ("morph",) and isinstance(p.type, Quantity)}
+    assert ranges == RANGES
+
+
 def test_help_texts_tie_to_the_engine():
     """Figures and names written into help texts (click cannot build them when asked) are the engine's."""
     from vfit_engine.body.measure import DENSITY
@@ -154,7 +167,7 @@ def test_morph_imports_no_other_command(tmp_path):
     code = ("import sys\nfrom vfit_cli.main import cli\n"
             f"cli(['morph', '--height', '170', '-q', '-o', {str(tmp_path / 'b.obj')!r}], standalone_mode=False)\n"
             "print(sorted(m for m in sys.modules if m.startswith('vfit_cli.') and m[9:] in "
-            "('animate', 'batch', 'drape', 'measure', 'pose', 'segment', 'size', 'transfer')))\n")
+            f"{tuple(p[0] for p in COMMAND_PATHS if p[0] != 'morph')!r}))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.splitlines()[-1] == "[]"
 
