@@ -65,6 +65,33 @@ class Gender(click.ParamType):
             self.fail(str(exc), param, ctx)
 
 
+class EngineChoice(click.Choice):
+    """A :class:`click.Choice` among the names an engine constant holds (a tuple, or a dict's keys), e.g.
+    ``EngineChoice("vfit_engine.garment.transfer:METHODS")``: the command line offers what the engine takes,
+    from the one list the engine checks.
+
+    The constant's module is imported when the choices are first wanted (a value to check, ``--help`` to
+    write), not with the command's module: ``vfit --help`` and a command that never reads them load no NumPy.
+    ``first``: names the command adds before the engine's (``"auto"``); ``without``: names it does not offer.
+    """
+
+    def __init__(self, constant: str, first: tuple = (), without: tuple = ()):
+        self.constant, self.first, self.without = constant, tuple(first), tuple(without)
+        self.case_sensitive = True
+
+    @functools.cached_property
+    def choices(self):
+        import importlib
+
+        module, name = self.constant.split(":")
+        names = tuple(getattr(importlib.import_module(module), name))
+        return self.first + tuple(n for n in names if n not in self.without)
+
+
+#: ``--units`` of a mesh file: ``auto`` (from its height) or a unit of ``vfit_engine.units.LENGTH_UNITS``
+FILE_UNITS = EngineChoice("vfit_engine.units:LENGTH_UNITS", first=("auto",))
+
+
 class Terminated(KeyboardInterrupt):
     """Raised by the ``vfit`` group's SIGTERM handler: a SIGTERM ends a run as Ctrl-C does, and whoever
     catches KeyboardInterrupt can tell the two apart (exit 143 against 130)."""

@@ -3,15 +3,13 @@ from types import SimpleNamespace
 
 import click
 
-from ._common import check_output_path, handle_errors, interruption, write_json
+from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
 from ._outdir import OutdirLock, check_outdir, clear_outputs
 from ._progress import Progress, kernels_cached
 from .drape import body_targets, morph_options
 
 #: Files an animation writes into OUT (removed before a new run writes there).
 OUTPUT_GLOBS = ("frame_*.obj", "body_*.obj", "animation.glb", "preview.gif", "report.json")
-#: Colliders of an animation (``vfit_engine.animate.loop.COLLIDERS``; listed here so --help imports no numpy).
-COLLIDERS = ("mesh", "bone-spheres", "spheres")
 
 
 @click.command()
@@ -37,18 +35,18 @@ COLLIDERS = ("mesh", "bone-spheres", "spheres")
               help="Write frame_NNNN.obj (garment) and body_NNNN.obj every K frames, 0 the rest drape (0: none).")
 @click.option("--blend", type=click.FloatRange(0.0, 10.0), default=0.5, show_default=True,
               help="Seconds over which the motion is blended in from the A pose the garment is draped in.")
-@click.option("--collider", type=click.Choice(COLLIDERS), default="mesh", show_default=True,
+@click.option("--collider", type=EngineChoice("vfit_engine.animate.loop:COLLIDERS"), default="mesh", show_default=True,
               help="mesh = the exact body surface near the garment, moving every substep; bone-spheres = spheres "
                    "along the bones, spheres = the medial sphere cover, both following the bones (faster, "
                    "approximate).")
-@click.option("--skinning", type=click.Choice(["dqs", "lbs"]), default="dqs", show_default=True,
+@click.option("--skinning", type=EngineChoice("vfit_engine.body.skinning:METHODS"), default="dqs", show_default=True,
               help="How the body follows its bones: dual quaternions or linear blend.")
 @click.option("--material", default="cotton", show_default=True,
               help="silk, cotton, wool, denim, jersey, or a material .json file.")
 @click.option("--pin", default="auto", show_default=True,
               help="auto (waistbands and shoulders, attached to the body; they move with it), none, or a file of "
                    "garment vertex indices.")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--preview", is_flag=True, help="Also write OUT/preview.gif: the garment, coloured by yarn strain, "
                                               "on the moving body from the front and the side.")

@@ -5,14 +5,10 @@ from types import SimpleNamespace
 import click
 
 from . import morph as _morph
-from ._common import check_output_path, handle_errors, interruption, write_json
+from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
 from ._outdir import OutdirLock, check_outdir, clear_outputs
 from ._progress import Progress, kernels_cached
 
-#: Garment transfer methods (``vfit_engine.garment.transfer.METHODS``; listed here so --help imports no numpy).
-TRANSFER_METHODS = ("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none")
-#: Colliders (``vfit_engine.drape.colliders.COLLIDERS``).
-COLLIDERS = ("mesh", "spheres", "bone-spheres", "ellipsoids", "hulls")
 #: ``vfit morph`` options reused here (same names, types and help), so the commands agree.
 MORPH_OPTIONS = ("gender", "height", "weight") + _morph.GIRTH_OPTIONS + ("definition",)
 #: Files a drape writes into OUTDIR (removed before a new run writes there, so none is left from an
@@ -20,8 +16,6 @@ MORPH_OPTIONS = ("gender", "height", "weight") + _morph.GIRTH_OPTIONS + ("defini
 OUTPUT_GLOBS = ("final.obj", "final.ply", "final.glb", "final_fine.*", "body.obj", "body.ply", "body.glb",
                 "report.json", "preview.png", "fit.ply", "scene.glb", "drape.gif", "frame_*.obj", "frame_*.ply",
                 "frame_*.glb")
-#: Fit maps a picture can show (``vfit_engine.fit.outputs.PICTURE_MAPS``).
-MAPS = ("strain", "ease", "pressure")
 #: An unpinned garment that did not settle and whose mean height fell by more than this (m) slid down the
 #: body: the error says so.
 FELL_M = 0.05
@@ -68,22 +62,25 @@ def body_targets(body_path, girths, height, weight):
 @morph_options
 @click.option("--material", default="cotton", show_default=True,
               help="silk, cotton, wool, denim, jersey, or a material .json file (keys with units: see README).")
-@click.option("--rest", type=click.Choice(["garment", "graded"]), default="garment", show_default=True,
+@click.option("--rest", type=EngineChoice("vfit_engine.drape.setup:REST_MODES"), default="garment",
+              show_default=True,
               help="The cloth's own size: garment = the garment as given (a size M shirt on a large body is "
                    "tight, and the report says where); graded = made to measure: the garment graded to this "
                    "body first (MakeHuman's refit), so it fits any body.")
-@click.option("--transfer", type=click.Choice(TRANSFER_METHODS), default="auto", show_default=True,
+@click.option("--transfer", type=EngineChoice("vfit_engine.garment.transfer:METHODS"), default="auto",
+              show_default=True,
               help="How the garment is moved from the body it was made for to this one to start the drape "
                    "(only the start; the rest shape is --rest): auto = mhclo-delta when a .mhclo is beside "
                    "the garment and the body has its helper vertices, else dqs; none = start where it is.")
-@click.option("--collider", type=click.Choice(COLLIDERS), default="mesh", show_default=True,
+@click.option("--collider", type=EngineChoice("vfit_engine.drape.colliders:COLLIDERS"), default="mesh",
+              show_default=True,
               help="mesh = the exact body surface; spheres, bone-spheres, ellipsoids, hulls = shapes fitted "
                    "to the body: faster to move but approximate (BENCHMARKS.md: how far each lets cloth sink "
                    "in or float).")
 @click.option("--pin", default="auto", show_default=True,
               help="auto (waistbands and shoulders, attached to the body), none, or a text file of garment "
                    "vertex indices (0-based, one per line).")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--frames", type=click.IntRange(1, 100000), default=None,
               help="Most frames to simulate (60 per simulated second; 20 s) [default: 1200].")
@@ -96,11 +93,12 @@ def body_targets(body_path, girths, height, weight):
                    "trousers or a dress longer than the legs pool on it.")
 @click.option("--every", type=click.IntRange(0, 100000), default=10, show_default=True,
               help="Write frame_NNNN every K frames, frame_0000 being the start (0: none).")
-@click.option("--format", "fmt", type=click.Choice(["obj", "ply", "glb"]), default="obj", show_default=True,
+@click.option("--format", "fmt", type=EngineChoice("vfit_engine.io.mesh:FORMATS"), default="obj", show_default=True,
               help="Mesh format of final, body and frame files (glb: glTF for viewers, vertices split at UV seams).")
 @click.option("--preview", is_flag=True, help="Also write OUTDIR/preview.png: body and garment from the front, "
                                               "side and back, the garment coloured by --map, with a colour bar.")
-@click.option("--map", "map_name", type=click.Choice(MAPS), default="strain", show_default=True,
+@click.option("--map", "map_name", type=EngineChoice("vfit_engine.fit.outputs:PICTURE_MAPS"), default="strain",
+              show_default=True,
               help="Fit map that colours the preview, the GIF and scene.glb: yarn strain (%), ease (mm from the "
                    "skin) or contact pressure (kPa).")
 @click.option("--gif", is_flag=True, help="Also write OUTDIR/drape.gif: the drape frame by frame, from the front.")

@@ -1,15 +1,16 @@
 """``vfit measure``: measure a body mesh with hm08 topology."""
 import click
 
-from ._common import check_output_path, fmt_table, handle_errors, write_json
+from ._common import FILE_UNITS, EngineChoice, check_output_path, fmt_table, handle_errors, write_json
 
 
 @click.command()
 @click.argument("body", type=click.Path(dir_okay=False))
-@click.option("--definition", type=click.Choice(["iso", "makehuman", "spline"]), default="iso", show_default=True,
+@click.option("--definition", type=EngineChoice("vfit_engine.body.measure:DEFINITIONS"), default="iso",
+              show_default=True,
               help="iso = horizontal tape girths (convex hull of the torso section), makehuman = MakeHuman's "
                    "20 rulers, spline = profile curve through the section.")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the file (auto: from the body's height; MakeHuman exports are dm, vfit writes m).")
 @click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),
               help="Also write the figures as JSON.")

@@ -3,7 +3,7 @@ from types import SimpleNamespace
 
 import click
 
-from ._common import check_output_path, fmt_table, handle_errors, interruption, write_json
+from ._common import FILE_UNITS, check_output_path, fmt_table, handle_errors, interruption, write_json
 from .drape import body_targets, morph_options
 
 #: The sizes (``vfit_engine.fit.sizes.SIZE_NAMES``; listed here so --help imports no numpy).
@@ -22,7 +22,7 @@ NOT_JUDGED = 3
               help="Comma-separated EN 13402 letter sizes to try.")
 @click.option("--material", default="cotton", show_default=True,
               help="silk, cotton, wool, denim, jersey, or a material .json file (keys with units: see README).")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--workers", type=click.IntRange(1, 256), default=None,
               help="Sizes tried at once, each in its own process [default: the cores available].")

@@ -1,7 +1,7 @@
 """``vfit transfer``: move a garment made for one body onto another body."""
 import click
 
-from ._common import check_output_path, handle_errors
+from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors
 from .drape import morph_options
 
 
@@ -14,7 +14,8 @@ from .drape import morph_options
               help="Body to move the garment to (.obj/.ply, hm08 topology); or give measurement options "
                    "instead and vfit builds it.")
 @morph_options
-@click.option("--method", type=click.Choice(["auto", "mhclo", "mhclo-delta", "dqs", "lbs"]), default="auto",
+# every transfer method but none (the garment would stay where it is: that is vfit drape --transfer none)
+@click.option("--method", type=EngineChoice("vfit_engine.garment.transfer:METHODS", without=("none",)), default="auto",
               show_default=True,
               help="mhclo = re-fit the garment's .mhclo binding on the target (needs a body vfit builds from "
                    "measurements: a body file lacks the helper vertices); mhclo-delta = the garment plus the "
@@ -23,7 +24,7 @@ from .drape import morph_options
                    "Every method but mhclo then gives back any clearance from the skin the garment lost.")
 @click.option("--k", "k", type=click.IntRange(1, 64), default=6, show_default=True,
               help="Body vertices each garment vertex follows (dqs/lbs).")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("-o", "--output", default="transferred.obj", show_default=True, type=click.Path(dir_okay=False),
               help="Garment to write (.obj or .ply): the input's vertex order, faces and UVs, in metres.")
@@ -146,7 +147,8 @@ def _binding(g, method):
 
 
 def _read_body(path, model, helpers):
-    """Body vertices in metres: all 19,158 when ``helpers`` and the file has them, else the 13,380 body ones."""
+    """Body vertices in metres: all ``N_VERTS`` (with MakeHuman's helpers) when ``helpers`` and the file has them,
+    else the ``N_BODY`` body ones."""
     from vfit_engine.body.bodyio import read_body
     from vfit_engine.body.model import N_VERTS
     from vfit_engine.io.mesh import read_mesh

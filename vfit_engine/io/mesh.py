@@ -15,6 +15,8 @@ from vfit_engine.errors import InputError
 
 #: Largest vertex count vfit accepts in an input mesh (a cap against absurd inputs).
 MAX_VERTS = 300_000
+#: Mesh formats, by file extension: ``read_mesh`` reads obj and ply, ``write_mesh`` writes all three.
+FORMATS = ("obj", "ply", "glb")
 
 
 @dataclass
