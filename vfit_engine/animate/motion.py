@@ -56,8 +56,6 @@ for _side, _s in (("Left", "L"), ("Right", "R")):
                        f"{_side}Arm": f"upperarm01.{_s}", f"{_side}ForeArm": f"lowerarm01.{_s}",
                        f"{_side}Hand": f"wrist.{_s}"})
 del _side, _s
-#: A file naming at least this many of the rig's bones is in the rig's own names (MakeHuman's poses).
-RIG_NAMES_MIN = 10
 
 
 @dataclass
@@ -184,6 +182,8 @@ def _rig_rotations(model, motion, frame, axes):
 
 def _joint_map(model, motion, source, joint_map):
     """(file joint -> rig bone, how the names were read)."""
+    from vfit_engine.body.pose import joint_naming
+
     rig = set(model.bone_names)
     if joint_map is not None:
         if isinstance(joint_map, (str, os.PathLike)):
@@ -199,13 +199,9 @@ def _joint_map(model, motion, source, joint_map):
         if bad:
             raise InputError(f"joint map: {bad[0]!r} is not a bone of the default rig (e.g. upperleg01.L)")
         return dict(joint_map), "joint map"
-    if len(rig & set(motion.names)) >= RIG_NAMES_MIN:
-        return {}, "rig names"
-    found = set(CMU_JOINTS) & set(motion.names)
-    if len(found) >= RIG_NAMES_MIN:
-        return dict(CMU_JOINTS), "CMU names"
-    raise InputError(f"{source}: its joints ({', '.join(motion.names[:4])}, ...) are neither the default rig's "
-                     "bones nor CMU's skeleton: give --joint-map FILE.json ({\"file joint\": \"rig bone\"})")
+    how = joint_naming(model, motion, source, {"CMU names": CMU_JOINTS},
+                       fix="give --joint-map FILE.json ({\"file joint\": \"rig bone\"})")
+    return ({} if how == "rig names" else dict(CMU_JOINTS)), how
 
 
 def _renamed(motion, mapping):
