@@ -131,6 +131,8 @@ def _animate(o):
     progress = Progress(o.quiet, command="vfit animate")
     progress.stage(f"reading {os.path.basename(o.garment)} and the motion")
     g = load_garment(o.garment, units=o.units)
+    for w in g.warnings:  # as vfit drape says them: a unit that makes the garment absurd, an ignored binding
+        click.echo(f"Warning: {o.garment}: {w}", err=True)
     pins = o.pin if o.pin in ("auto", "none") else read_pin_file(o.pin, g.mesh.n_verts)
     model = BodyModel.load()
     settings = AnimateSettings(fps=o.fps, frames=o.frames, blend_s=o.blend, skinning=o.skinning, collider=o.collider)
