@@ -147,7 +147,8 @@ def test_mhclo_errors_name_file_and_line(tmp_path, line, words):
 @pytest.mark.parametrize("text, line, words", [
     (MHCLO.format("1 2 3 0.2 0.3 0.5").replace("x_scale 0 1 1.0", "x_scale 0 19158 1.0"), 4, "body vertex 19158"),
     (MHCLO.format("1 2 3 0.2 0.3 0.5").replace("x_scale 0 1 1.0", "x_scale 0 1 0"), 4, "not positive"),
-    (MHCLO.format("1 2 3 0.2 0.3 0.5") + "delete_verts\n1 2 - 30000\n", 10, "body vertex 19158"),
+    (MHCLO.format("1 2 3 0.2 0.3 0.5") + "delete_verts\n1 2 - 30000\n", 10, "body vertex 30000"),
+    (MHCLO.format("1 2 3 0.2 0.3 0.5") + "delete_verts\n0 - 999999999999\n", 10, "body vertex 999999999999"),
 ])
 def test_mhclo_scale_and_delete_lines_are_checked(tmp_path, text, line, words):
     from vfit_engine.garment.mhclo import parse_mhclo

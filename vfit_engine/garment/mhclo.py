@@ -201,9 +201,8 @@ def parse_mhclo(path):
                         offsets.append((0.0, 0.0, 0.0))
                 _check_line(path, lineno, refs[-1], weights[-1] + offsets[-1], "weight or offset")
             elif status == "delete" and (key[0].isdigit() or key == "-"):
-                first = len(deleted)
+                _check_line(path, lineno, [int(w) for w in words if w != "-"], [], "")  # before a run expands
                 _parse_delete_verts(words, deleted)
-                _check_line(path, lineno, deleted[first:], [], "")
             # other keywords (material details, shear, special_pose, ...) do not affect fitting
         except (ValueError, IndexError):
             raise InputError(f"{path}:{lineno}: cannot read .mhclo line {line.strip()[:60]!r}; fix or remove "
