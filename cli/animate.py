@@ -131,10 +131,13 @@ def _animate(o):
     progress = Progress(o.quiet, command="vfit animate")
     progress.stage(f"reading {os.path.basename(o.garment)} and the motion")
     g = load_garment(o.garment, units=o.units)
+    for w in g.warnings:  # as vfit drape says them: a unit that makes the garment absurd, an ignored binding
+        click.echo(f"Warning: {o.garment}: {w}", err=True)
     pins = o.pin if o.pin in ("auto", "none") else read_pin_file(o.pin, g.mesh.n_verts)
     model = BodyModel.load()
     settings = AnimateSettings(fps=o.fps, frames=o.frames, blend_s=o.blend, skinning=o.skinning, collider=o.collider)
-    clip = load_clip(model, o.motion, speed=o.speed, fps=o.fps, travel=o.travel, joint_map=o.joint_map)
+    clip = load_clip(model, o.motion, speed=o.speed, fps=o.fps, travel=o.travel, joint_map=o.joint_map,
+                     until=o.frames / o.fps)  # the last frame's time (animate.loop.pose_frames)
     tag_gender = garment_gender(g)
     progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
                    f"reading the body {o.body_path}" if o.body_path else "loading the default body")

@@ -219,12 +219,24 @@ def _unsettled(setup, result, settings, report):
     if setup.pins.indices.size == 0 and drop > FELL_M:
         # unpinned, it slides down the body (or falls off it): say so, not only that it kept moving
         click.echo(f"Error: the garment slid {100 * drop:.0f} cm down the body in {result.frames} frames and did "
-                   "not stop: nothing holds it up without pins; use --pin auto or a pin file", err=True)
+                   f"not stop: {_no_pins(setup.pins.info)}", err=True)
         return 3
     click.echo(f"Error: the cloth did not settle within {settings.max_frames} frames: {report['settle']['test']} "
                f"failed (last frame: {100 * result.settle['share_moving']:.2f} % of the vertices moved more "
                f"than {1000 * settings.settle_step:g} mm, the fastest {result.settle['max_step_mm']:.2f} mm)", err=True)
     return 3
+
+
+def _no_pins(info):
+    """Why nothing held the garment up, and what to do, from the pins' summary (``Pins.info``): --pin auto
+    in use is not the advice for a garment it could not pin."""
+    mode, inside = info.get("mode"), info.get("dropped_inside", 0)
+    if mode == "none":
+        return "nothing holds it up without pins; use --pin auto or a pin file"
+    let_go = f" (its {inside} pin(s) lay inside the body and were let go)" if inside else ""
+    found = "--pin auto held nothing" if mode == "auto" else "the pin file held nothing"
+    return (f"{found}{let_go}; give a pin file of the vertices that rest on the body (a waistband, the "
+            "shoulders), or check that the garment is made to be worn on this body")
 
 
 def _simulate(setup, settings, o, context):

@@ -63,19 +63,24 @@ def pose(ctx, body_path, pose_path, frame, speed, gif_path, skinning, output, js
     from vfit_engine.body.bodyio import write_body
     from vfit_engine.body.gait import walk_motion
     from vfit_engine.body.model import N_BODY, BodyModel
-    from vfit_engine.body.pose import pose_body, skinning_for
+    from vfit_engine.body.pose import joint_naming, pose_body, skinning_for
     from vfit_engine.body.resolve import resolve_body
     from vfit_engine.body.self_contact import lift_hands
     from vfit_engine.io.bvh import read_bvh
 
     model = BodyModel.load()
-    motion = walk_motion(model, speed=speed) if walk else read_bvh(pose_path)
-    if frame >= len(motion.frames):
+    one = not (walk or gif_path)  # one frame of the file is all the body needs: a long file is not held whole
+    motion = walk_motion(model, speed=speed) if walk else read_bvh(pose_path, frame=frame if one else None)
+    if not one and frame >= len(motion.frames):
         raise InputError(f"{pose_path}: frame {frame} asked for, the {'walk' if walk else 'file'} has "
                          f"{len(motion.frames)} (use --frame 0..{len(motion.frames) - 1})")
+    if not walk:  # vfit animate's check: a file in other names would leave the body unposed
+        joint_naming(model, motion, pose_path, fix="use a pose in the rig's bone names (MakeHuman's poses), or "
+                                                   "vfit animate --motion FILE --joint-map MAP.json for another "
+                                                   "skeleton")
     body = resolve_body(model, body_path, targets, weight, gender, definition)
     skin = skinning_for(model, len(body.verts))
-    posed = pose_body(model, body.verts, motion, frame, method=skinning, skinning=skin)
+    posed = pose_body(model, body.verts, motion, 0 if one else frame, method=skinning, skinning=skin)
     write_body(output, model, lift_hands(model, body.verts)(posed.verts),
                header=[f"vfit pose: {os.path.basename(pose_path)} frame {frame}, {skinning}; metres, Y up"])
     if gif_path:

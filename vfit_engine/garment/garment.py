@@ -22,6 +22,9 @@ MAX_COORDINATE = 1e6
 HEIGHT_RATIO_RANGE = (0.05, 1.3)
 #: Ratio a typical garment has; among plausible units the one closest to it (log scale) wins.
 TYPICAL_HEIGHT_RATIO = 0.55
+#: A garment whose every extent is under this share of the body's height (25 cm on 1.7 m: a cap, a sock) is
+#: questioned when its units were given and its height reads as a garment in another unit.
+SMALL_SIZE_RATIO = 0.15
 #: Body height assumed when none is given, m.
 DEFAULT_BODY_HEIGHT_M = 1.7
 
@@ -116,6 +119,19 @@ def choose_units(height, body_height_m=None):
     if ok:
         return min(ok, key=score), True
     return min(LENGTH_UNITS, key=score), False
+
+
+def _small_for_units(verts, height, units, body, body_height_m):
+    """A warning (a list of at most one) for a garment whose every extent is under :data:`SMALL_SIZE_RATIO` of
+    the body in the ``units`` given while its height reads as a garment in another unit: a decimetre suit read
+    in cm is 13 cm tall, inside the height range, and drapes to a 1,400 % strain."""
+    size = float(np.ptp(verts, axis=0).max()) * LENGTH_UNITS[units]
+    guess, plausible = choose_units(height, body_height_m)
+    if size >= SMALL_SIZE_RATIO * body or guess == units or not plausible:
+        return []
+    return [f"garment is at most {size:.3g} m across read in {units}, small for a garment on a {body:.2g} m body "
+            f"(its height says {guess}: {height * LENGTH_UNITS[guess]:.3g} m tall); check --units (a cap or a sock "
+            "can be this small)"]
 
 
 def piece_labels(n_verts, edges):
@@ -229,9 +245,10 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
         raise InputError(f"{path}: garment has no faces")
     warnings = []
     height = float(np.ptp(mesh.verts[:, 1]))
+    if height <= 0:  # flat in Y: no unit makes it hang on a body (and a ratio of 0 has no logarithm)
+        raise InputError(f"{path}: garment has zero height (every vertex at y = {mesh.verts[0, 1]:g}); vfit "
+                         "drapes garments modelled Y up, as worn: export it with Y up")
     if units == "auto":
-        if height <= 0:
-            raise InputError(f"{path}: garment has zero height, cannot guess its units (pass units)")
         units, plausible = choose_units(height, body_height_m)
         if not plausible:
             warnings.append(
@@ -244,6 +261,8 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
             hint = f"its height says {guess}" if plausible else "no unit makes it garment-sized"
             warnings.append(f"garment is {height * LENGTH_UNITS[units]:.3g} m tall read in {units}, implausible "
                             f"for a garment on a {body:.2g} m body ({hint}); check --units")
+        else:
+            warnings.extend(_small_for_units(mesh.verts, height, units, body, body_height_m))
     mesh.verts = np.ascontiguousarray(mesh.verts * LENGTH_UNITS[units])
     bad = degenerate_faces(mesh)
     if bad.all():
