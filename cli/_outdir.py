@@ -25,7 +25,8 @@ LOCK_NAME = ".vfit.lock"
 
 
 def check_outdir(outdir):
-    """Fail early, before any long computation, on an OUTDIR that cannot be written."""
+    """Fail early, before any long computation, on an OUTDIR that cannot be written (a missing one is created
+    and removed again)."""
     if os.path.exists(outdir) and not os.path.isdir(outdir):
         raise InputError(f"cannot write to {outdir}: not a directory")
     existing = os.path.abspath(outdir)
@@ -35,6 +36,21 @@ def check_outdir(outdir):
         raise InputError(f"cannot create {outdir}: {existing} is not a directory")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise InputError(f"cannot write to {outdir}: permission denied")
+    made = []
+    missing = os.path.abspath(outdir)
+    while not os.path.exists(missing):
+        made.append(missing)
+        missing = os.path.dirname(missing)
+    try:  # what OutdirLock will create, created and removed now: a name too long, a file system without files
+        os.makedirs(outdir, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create output directory {outdir}: {exc.strerror or exc}; choose another -o") from None
+    finally:
+        for d in made:  # deepest first
+            try:
+                os.rmdir(d)
+            except OSError:
+                pass
 
 
 def check_outputs(outdir, globs, inputs, extra_outputs=()):
