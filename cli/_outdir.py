@@ -106,15 +106,18 @@ def clear_outputs(outdir, globs):
 
 
 def _lock(fd):
-    """Lock the open file ``fd`` without waiting; OSError when another process holds it."""
+    """Lock the open file ``fd`` without waiting; BlockingIOError when another process holds it."""
     if fcntl is not None:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    else:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # BlockingIOError when held
+        return
+    try:
         msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
+    except OSError:
+        raise BlockingIOError("locked by another process") from None
 
 
 def _take(lock):
-    """Open and lock the file ``lock`` (created if missing); returns its descriptor, OSError when held.
+    """Open and lock the file ``lock`` (created if missing); returns its descriptor, BlockingIOError when held.
 
     A run that lets go removes the file before it closes it; one that opened the file just before that would
     then lock a name no longer in the directory while a third run creates and locks a new file: so the lock
@@ -153,7 +156,7 @@ class OutdirLock:
             self.fd = _take(self.lock)
         except OSError as exc:
             self._tidy()
-            if isinstance(exc, (BlockingIOError, PermissionError)):  # flock's EWOULDBLOCK, msvcrt's EACCES
+            if isinstance(exc, BlockingIOError):
                 raise InputError(f"{self.outdir} is in use by another vfit run ({self._owner()}); wait for it or "
                                  "choose another -o") from None
             raise InputError(f"cannot lock {self.lock}: {exc.strerror or exc}") from None
