@@ -241,7 +241,12 @@ def _drape(o):
         report = _finish(setup, result, model, o, written, context, time.perf_counter() - o.t_start)
         write_json(os.path.join(o.outdir, "report.json"), report)
         if o.json_path:
-            write_json(o.json_path, report)
+            try:
+                write_json(o.json_path, report)
+            except InputError as exc:  # it was writable before the drape: not a reason to hide an exit 3
+                if result.converged:
+                    raise
+                click.echo(f"Warning: {exc}; the report is in {os.path.join(o.outdir, 'report.json')}", err=True)
     except KeyboardInterrupt as exc:
         return _interrupted_writing(setup, result, o, written, context, exc)
     if not o.quiet:

@@ -368,3 +368,23 @@ def test_a_non_manifold_garment_is_refused_before_the_drape(tmp_path):
     lo, hi = sorted((a, b))
     assert str(bad) in err and f"between vertices {lo} and {hi}" in err and "non-manifold" in err
     assert "remove" in err and not (tmp_path / "o").exists()
+
+
+def test_a_json_copy_failing_after_the_drape_does_not_hide_exit_3(tmp_path, monkeypatch):
+    """--json checked writable before the drape but failing after it (a disk filled since): a warning, and the
+    drape's own exit 3 (not settled), not exit 2."""
+    import vfit_cli.drape as drape_cli
+    from vfit_engine.errors import InputError
+
+    write_json = drape_cli.write_json
+    copy = tmp_path / "r.json"
+
+    def full_disk(path, payload):
+        if str(path) == str(copy):
+            raise InputError(f"cannot write {path}: No space left on device")
+        write_json(path, payload)
+
+    monkeypatch.setattr(drape_cli, "write_json", full_disk)
+    r = invoke("drape", DEMO_SKIRT, "-o", tmp_path / "o", "--json", copy, *CHEAP)
+    assert "did not settle" in one_error(r, 3)
+    assert "Warning: cannot write" in r.output and (tmp_path / "o" / "report.json").is_file()
