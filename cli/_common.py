@@ -122,22 +122,42 @@ def handle_errors(func):
     return wrapper
 
 
-def check_output_path(path: str, suffixes: tuple) -> None:
-    """Fail early (before any long computation) on an output path that cannot be written."""
+def check_output_path(path: str, suffixes: tuple, outdir: str | None = None) -> None:
+    """Fail early (before any long computation) on an output path that cannot be written: its suffix, its
+    directory, then a file made and removed there (``vfit_engine.io.atomic.check_writable``).
+
+    ``outdir``: the command's output directory, which it creates before writing: ``path`` may be in it while
+    it does not exist yet (then it is made for the check and removed again).
+    """
     import os
 
     from vfit_engine.errors import InputError
+    from vfit_engine.io.atomic import check_writable
 
     ext = os.path.splitext(path)[1].lower()
     if ext not in suffixes:
         raise InputError(f"cannot write {path}: use one of {', '.join(suffixes)}")
     d = os.path.dirname(os.path.abspath(path))
+    made = []
     if not os.path.isdir(d):
-        raise InputError(f"cannot write {path}: directory {d} does not exist")
-    if not os.access(d, os.W_OK):
-        raise InputError(f"cannot write {path}: directory {d} is not writable")
-    if os.path.isdir(path):
-        raise InputError(f"cannot write {path}: it is a directory")
+        if outdir is None or d != os.path.abspath(outdir):
+            raise InputError(f"cannot write {path}: directory {d} does not exist")
+        missing = d
+        while not os.path.exists(missing):
+            made.append(missing)
+            missing = os.path.dirname(missing)
+        try:
+            os.makedirs(d)
+        except OSError as exc:
+            raise InputError(f"cannot write {path}: cannot create {d}: {exc.strerror or exc}") from None
+    try:
+        check_writable(path)
+    finally:
+        for m in made:  # deepest first
+            try:
+                os.rmdir(m)
+            except OSError:
+                pass
 
 
 def write_json(path: str, payload: dict) -> None:

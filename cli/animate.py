@@ -4,9 +4,9 @@ from types import SimpleNamespace
 import click
 
 from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
-from ._outdir import OutdirLock, check_outdir, clear_outputs
+from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs
 from ._progress import Progress, kernels_cached
-from .drape import body_targets, morph_options
+from .drape import body_targets, morph_options, user_files
 
 #: Files an animation writes into OUT (removed before a new run writes there).
 OUTPUT_GLOBS = ("frame_*.obj", "body_*.obj", "animation.glb", "preview.gif", "report.json")
@@ -91,7 +91,10 @@ def animate(ctx, garment, body_path, motion, speed, joint_map, travel, frames, f
         raise InputError(f"joint map not found: {joint_map}")
     check_outdir(outdir)
     if json_path:
-        check_output_path(json_path, (".json",))
+        check_output_path(json_path, (".json",), outdir=outdir)
+    inputs = dict(user_files(garment, body_path, pin, material), **{"--motion": None if motion == "walk" else motion,
+                                                                    "--joint-map": joint_map})
+    check_outputs(outdir, OUTPUT_GLOBS, inputs, extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
     o = SimpleNamespace(garment=garment, body_path=body_path, motion=motion, speed=speed, joint_map=joint_map,
                         travel=travel, frames=frames, fps=fps, every=every, blend=blend, collider=collider,

@@ -6,7 +6,7 @@ import click
 
 from . import morph as _morph
 from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
-from ._outdir import OutdirLock, check_outdir, clear_outputs
+from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs
 from ._progress import Progress, kernels_cached
 
 #: ``vfit morph`` options reused here (same names, types and help), so the commands agree.
@@ -141,22 +141,55 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
         raise InputError(f"garment file not found: {garment}")
     check_outdir(outdir)
     if json_path:
-        check_output_path(json_path, (".json",))
+        check_output_path(json_path, (".json",), outdir=outdir)
+    check_outputs(outdir, OUTPUT_GLOBS, user_files(garment, body_path, pin, material), extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
     opts = SimpleNamespace(garment=garment, body_path=body_path, material=material, rest=rest, transfer=transfer,
                            collider=collider, pin=pin, units=units, frames=frames, refine=refine, ground=ground,
                            every=every, fmt=fmt,
                            preview=preview, map_name=map_name, gif=gif, outdir=outdir, json_path=json_path, quiet=quiet,
                            gender=gender if gender_given else None, weight=weight, definition=definition,
-                           targets=targets, t_start=t_start)
+                           targets=targets, t_start=t_start, cleared=False)
     try:
         with OutdirLock(outdir):
             code = _drape(opts)
-    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (the vfit group's) during the set-up
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (the vfit group's) outside the drape and its outputs
         name, code = interruption(exc)
-        click.echo(f"Error: interrupted by {name} before the drape started; nothing written", err=True)
+        if opts.cleared:  # after the earlier run's outputs were removed: say what is there
+            click.echo(f"Error: interrupted by {name}; {_kept(outdir) or 'no output'} in {outdir}", err=True)
+        else:
+            click.echo(f"Error: interrupted by {name} before the drape started; nothing written", err=True)
     if code:
         ctx.exit(code)
+
+
+def user_files(garment, body_path=None, pin=None, material=None):
+    """The files a drape reads that the user named (or that go with one): what (for the message) -> path."""
+    import os
+
+    from vfit_engine.garment.garment import find_mhclo
+
+    files = {"garment": garment, "the garment's binding": find_mhclo(garment) if os.path.isfile(garment) else None,
+             "--body": body_path}
+    if pin not in (None, "auto", "none"):
+        files["--pin"] = pin
+    if material is not None and os.path.isfile(material):  # else a built-in material's name
+        files["--material"] = material
+    return files
+
+
+def _kept(outdir):
+    """The outputs present in OUTDIR, as a user reads them: 'final.obj, report.json and 3 frame files'."""
+    import glob
+    import os
+
+    names = sorted({os.path.basename(p) for pattern in OUTPUT_GLOBS
+                    for p in glob.glob(os.path.join(glob.escape(outdir), pattern))})
+    frames = [n for n in names if n.startswith("frame_")]
+    parts = [n for n in names if not n.startswith("frame_")]
+    if frames:
+        parts.append(f"{len(frames)} frame file{'s' if len(frames) > 1 else ''}")
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1] if parts else ""
 
 
 def _drape(o):
@@ -198,19 +231,46 @@ def _drape(o):
     for w in setup.pins.info.get("warnings", []):
         click.echo(f"Warning: {o.garment}: {w}", err=True)
     clear_outputs(o.outdir, OUTPUT_GLOBS)
+    o.cleared = True
     context = dict(garment=o.garment, garment_units=g.units, garment_vertices=g.mesh.n_verts,
                    garment_gender=tag_gender, warnings=list(g.warnings), body=body.description)
     result, written = _simulate(setup, settings, o, context)
     if isinstance(result, int):  # interrupted: its exit code
         return result
-    report = _finish(setup, result, model, o, written, context, time.perf_counter() - o.t_start)
-    write_json(os.path.join(o.outdir, "report.json"), report)
-    if o.json_path:
-        write_json(o.json_path, report)
+    try:
+        report = _finish(setup, result, model, o, written, context, time.perf_counter() - o.t_start)
+        write_json(os.path.join(o.outdir, "report.json"), report)
+        if o.json_path:
+            try:
+                write_json(o.json_path, report)
+            except InputError as exc:  # it was writable before the drape: not a reason to hide an exit 3
+                if result.converged:
+                    raise
+                click.echo(f"Warning: {exc}; the report is in {os.path.join(o.outdir, 'report.json')}", err=True)
+    except KeyboardInterrupt as exc:
+        return _interrupted_writing(setup, result, o, written, context, exc)
     if not o.quiet:
         _summary(g, setup, result, report)
         click.echo(f"wrote {', '.join(written + [os.path.join(o.outdir, 'report.json')])}")
     return 0 if result.converged else _unsettled(setup, result, settings, report)
+
+
+def _interrupted_writing(setup, result, o, written, context, exc):
+    """Ctrl-C or SIGTERM after the drape, while its outputs were written: a report marked interrupted (listing
+    the outputs complete) and the error line naming them; returns the exit code (130 / 143)."""
+    import os
+
+    from vfit_engine.drape import drape_report
+
+    name, code = interruption(exc)
+    rep = drape_report(setup, outputs=written, interrupted=dict(signal=name, frames=result.frames),
+                       interrupted_while="writing the outputs of the finished drape", **context)
+    write_json(os.path.join(o.outdir, "report.json"), rep)
+    if o.json_path:
+        write_json(o.json_path, rep)
+    click.echo(f"Error: interrupted by {name} after the drape ({result.frames} frames) while writing its outputs; "
+               f"kept {_kept(o.outdir)} in {o.outdir} (report.json says interrupted)", err=True)
+    return code
 
 
 def _unsettled(setup, result, settings, report):
@@ -305,23 +365,25 @@ def _finish(setup, result, model, o, written, context, elapsed):
     from vfit_engine.fit.table import FitTable, summary_line
     from vfit_engine.io.mesh import write_mesh
 
-    final = os.path.join(o.outdir, f"final.{o.fmt}")
-    _write_garment(final, setup, result.pos, context)
     if result.fine is not None:  # the subdivided cloth as simulated (no UVs: its vertices are not the garment's)
         fine = os.path.join(o.outdir, f"final_fine.{o.fmt}")
         write_mesh(fine, result.fine, header=["vfit drape: the subdivided cloth as simulated (--refine); metres, Y up"])
         written.append(fine)
+    final = os.path.join(o.outdir, f"final.{o.fmt}")
+    _write_garment(final, setup, result.pos, context)
+    written.append(final)
     body_file = os.path.join(o.outdir, f"body.{o.fmt}")
     write_body(body_file, model, setup.body.verts,
                header=[f"vfit drape: the body draped on ({setup.body.description.get('source')}); metres, Y up"])
-    written += [final, body_file]
+    written.append(body_file)
     o.progress.stage("measuring the fit: maps, the table per body region, the scene")
     maps = fit_maps(setup, result.pos)
     rows = FitTable(setup.body, model).rows(setup, result.pos, maps)
     paths = {name: os.path.join(o.outdir, name) for name in ("fit.ply", "scene.glb", "preview.png", "drape.gif")}
     write_fit_ply(paths["fit.ply"], setup, result.pos, maps)
+    written.append(paths["fit.ply"])
     write_scene(paths["scene.glb"], setup, result.pos, model, maps, o.map_name)
-    written += [paths["fit.ply"], paths["scene.glb"]]
+    written.append(paths["scene.glb"])
     if o.preview:
         write_preview(paths["preview.png"], setup, result.pos, model, maps, o.map_name)
         written.append(paths["preview.png"])

@@ -2,6 +2,7 @@
 import click
 
 from ._common import FILE_UNITS, EngineChoice, check_output_path, fmt_table, handle_errors, write_json
+from ._outdir import check_outputs
 
 
 @click.command()
@@ -33,6 +34,7 @@ def measure(body, definition, units, json_path):
         raise InputError(f"{body}: no such file")
     if json_path:
         check_output_path(json_path, (".json",))
+    check_outputs(None, (), {"BODY": body}, extra_outputs=[json_path])
     from vfit_engine.body.bodyio import read_body
     from vfit_engine.body.measure import DENSITY, Measurer
     from vfit_engine.body.model import BodyModel

@@ -2,6 +2,7 @@
 import click
 
 from ._common import EngineChoice, check_output_path, handle_errors, write_json
+from ._outdir import check_outputs
 from .drape import body_targets, morph_options
 
 
@@ -59,6 +60,8 @@ def pose(ctx, body_path, pose_path, frame, speed, gif_path, skinning, output, js
     walk = pose_path == "walk"
     if not walk and not os.path.isfile(pose_path):
         raise InputError(f"pose file not found: {pose_path} (or use --pose walk)")
+    check_outputs(None, (), {"--body": body_path, "--pose": None if walk else pose_path},
+                  extra_outputs=[output, json_path, gif_path])
 
     from vfit_engine.body.bodyio import write_body
     from vfit_engine.body.gait import walk_motion

@@ -2,6 +2,7 @@
 import click
 
 from ._common import FILE_UNITS, Quantity, check_output_path, fmt_table, handle_errors, write_json
+from ._outdir import check_outputs
 
 #: One colour per part of ``vfit_engine.body.segment.PARTS`` (left/right in related shades).
 PALETTE = (
@@ -46,6 +47,7 @@ def segment(body, output, json_path, units, voxel, quiet):
 
     if not os.path.isfile(body):
         raise InputError(f"{body}: no such file")
+    check_outputs(None, (), {"BODY": body}, extra_outputs=[output, json_path])
 
     import numpy as np
 

@@ -4,7 +4,8 @@ from types import SimpleNamespace
 import click
 
 from ._common import FILE_UNITS, check_output_path, fmt_table, handle_errors, interruption, write_json
-from .drape import body_targets, morph_options
+from ._outdir import check_outputs
+from .drape import body_targets, morph_options, user_files
 
 #: The sizes (``vfit_engine.fit.sizes.SIZE_NAMES``; listed here so --help imports no numpy).
 SIZE_NAMES = ("XS", "S", "M", "L", "XL")
@@ -70,6 +71,7 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
         raise InputError(f"body file not found: {body_path}")
     if json_path:
         check_output_path(json_path, (".json",))
+    check_outputs(None, (), user_files(garment, body_path, material=material), extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
     o = SimpleNamespace(garment=garment, names=names, material=material, units=units, workers=workers,
                         json_path=json_path, quiet=quiet, t_start=t_start,

@@ -2,7 +2,8 @@
 import click
 
 from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors
-from .drape import morph_options
+from ._outdir import check_outputs
+from .drape import morph_options, user_files
 
 
 @click.command()
@@ -63,6 +64,8 @@ def transfer(ctx, garment, from_path, to_path, method, k, units, output, quiet, 
         if path and not os.path.isfile(path):
             raise InputError(f"{what} file not found: {path}")
     check_output_path(output, (".obj", ".ply"))
+    check_outputs(None, (), dict(user_files(garment), **{"--from": from_path, "--to": to_path}),
+                  extra_outputs=[output])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
 
     from vfit_engine.body.model import BodyModel

@@ -202,6 +202,22 @@ def find_mhclo(path):
     return None
 
 
+def _check_manifold(mesh, path):
+    """InputError naming the first edge shared by more than two triangles (of the faces' fans): the fit table's
+    sections through it are ambiguous, and the drape would fail there, after all its work."""
+    tris = mesh.triangles()
+    e = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+    keys, counts = np.unique(e[:, 0] * mesh.n_verts + e[:, 1], return_counts=True)
+    over = np.flatnonzero(counts > 2)
+    if over.size:
+        i, j = divmod(int(keys[over[0]]), mesh.n_verts)
+        i, j = i + 1, j + 1
+        more = f" (and {over.size - 1} more such edges)" if over.size > 1 else ""
+        raise InputError(f"{path}: the edge between vertices {i} and {j} is shared by {counts[over[0]]} triangles, "
+                         f"more than two{more}: a non-manifold mesh; remove the duplicate or extra faces there or "
+                         "split the vertices")
+
+
 def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
     """Read a garment OBJ/PLY, convert it to metres and validate it.
 
@@ -222,8 +238,8 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
     ------
     InputError
         Unreadable or garbled file, no vertices or faces, NaN/inf coordinates or beyond
-        ``MAX_COORDINATE``, more than ``max_verts`` vertices, an unknown unit, every face degenerate, or
-        two vertices joined by an edge at the same point.
+        ``MAX_COORDINATE``, more than ``max_verts`` vertices, an unknown unit, every face degenerate,
+        two vertices joined by an edge at the same point, or an edge shared by more than two triangles.
     """
     path = Path(path)
     if units != "auto" and units not in LENGTH_UNITS:
@@ -276,6 +292,7 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
         i, j = e[int(np.argmax(flat))] + 1
         raise InputError(f"{path}: vertices {i} and {j} are at the same point but joined by an edge (coincident "
                          "vertices): merge them or move one apart")
+    _check_manifold(mesh, path)
     used = np.zeros(mesh.n_verts, dtype=bool)
     used[mesh.face_verts] = True
     if not used.all():
