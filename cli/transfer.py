@@ -70,7 +70,6 @@ def transfer(ctx, garment, from_path, to_path, method, k, units, output, quiet, 
 
     from vfit_engine.body.model import BodyModel
     from vfit_engine.garment.garment import load_garment
-    from vfit_engine.garment.transfer import _mhclo_top
     from vfit_engine.garment.transfer import transfer as transfer_verts
     from vfit_engine.io.mesh import write_mesh
 
@@ -101,7 +100,7 @@ def transfer(ctx, garment, from_path, to_path, method, k, units, output, quiet, 
     if method == "auto":
         method = "dqs"
         if binding is not None:
-            if min(source.shape[0], target.shape[0]) > _mhclo_top(binding):
+            if min(source.shape[0], target.shape[0]) > binding.top_vertex:
                 method = "mhclo-delta"
             else:
                 click.echo("Warning: the target body file has no helper vertices, which the garment's .mhclo "

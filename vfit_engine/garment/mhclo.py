@@ -74,6 +74,14 @@ class MhcloBinding:
         return int(self.ref_verts.shape[0])
 
     @property
+    def top_vertex(self):
+        """Highest body vertex index the binding reads (its references and its scale vertices)."""
+        top = int(self.ref_verts.max())
+        for a, b, _ in self.scales.values():
+            top = max(top, int(a), int(b))
+        return top
+
+    @property
     def gender(self):
         """``"female"``, ``"male"`` or None from the tags."""
         return gender_from_tags(self.tags)

@@ -84,9 +84,9 @@ class Motion:
         if self.frames.ndim < 2 and self.frames.size == 0:  # "no frames" still needs its c columns
             self.frames = self.frames.reshape(0, sum(map(len, self.channels)))
         self.frame_time = float(self.frame_time)
-        self._check()
+        self.check()
 
-    def _check(self):
+    def check(self):
         """Raise ValueError when the fields disagree with each other (a caller's bug, not a file's)."""
         j, width = len(self.names), sum(map(len, self.channels))
         if j == 0 or self.parents.shape != (j,) or self.offsets.shape != (j, 3) or len(self.channels) != j:
@@ -411,7 +411,7 @@ def write_bvh(path, motion):
     ValueError
         Inconsistent arrays, joints not depth-first, or names that would not read back the same.
     """
-    motion._check()
+    motion.check()
     if any(not n or n != " ".join(n.split()) or "{" in n or "}" in n for n in motion.names):
         raise ValueError("joint names must be non-empty, without braces, line breaks or repeated/edge spaces")
     values = [motion.offsets, motion.frames, [motion.frame_time], *motion.end_sites.values()]
