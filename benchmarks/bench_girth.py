@@ -154,8 +154,7 @@ def main():
 
     def bare():
         ks.scan_girths(verts, ms.tris, ms.edges, ms.tri_edges, ms.edge_tris, ys1, 0, 8, 0.0,
-                       ms._cand, ms._visited, ms._cut, ms._pts, ms._loop_start, ms._loop_closed,
-                       ms._order, ms._hull, ms._work, g1)
+                       *ms.scratch, g1)
 
     res["girth_hull_kernel_only_ms"] = timeit(bare)[0] * 1e3
     res["loops_ms"] = timeit(lambda: ms.loops(verts, y_waist))[0] * 1e3

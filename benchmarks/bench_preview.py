@@ -177,17 +177,17 @@ def bench_ours(scene, size, repeat):
         preview.render_views(os.path.join(tmp, "warm.png"), bv, bt, gv, gt, values, **kw)
         total = median_ms(lambda: preview.render_views(os.path.join(tmp, "p.png"), bv, bt, gv, gt, values, **kw),
                           repeat)
-    parts = {"rasterize": [], "downsample": [], "_decorate": [], "encode": [], "render_image": []}
+    parts = {"rasterize": [], "downsample": [], "decorate": [], "encode": [], "render_image": []}
     saved = {n: getattr(raster, n) for n in ("rasterize", "downsample")}
-    saved_decorate = preview._decorate
+    saved_decorate = preview.decorate
     try:
         for _ in range(repeat):
             bucket = {}
             for n in saved:
                 setattr(raster, n, saved[n])
                 _timed(raster, n, bucket)
-            preview._decorate = saved_decorate
-            _timed(preview, "_decorate", bucket)
+            preview.decorate = saved_decorate
+            _timed(preview, "decorate", bucket)
             t = time.perf_counter()
             image = preview.render_image(bv, bt, gv, gt, values, **kw)
             bucket["render_image"] = time.perf_counter() - t
@@ -199,8 +199,8 @@ def bench_ours(scene, size, repeat):
     finally:
         for n, fn in saved.items():
             setattr(raster, n, fn)
-        preview._decorate = saved_decorate
-    split = {("text_bar" if n == "_decorate" else n): float(np.median(v)) for n, v in parts.items()}
+        preview.decorate = saved_decorate
+    split = {("text_bar" if n == "decorate" else n): float(np.median(v)) for n, v in parts.items()}
     split["other"] = split.pop("render_image") - split["rasterize"] - split["downsample"] - split["text_bar"]
     return dict(total_ms=total, split_ms=split, image=[size[1], size[0], 3])
 

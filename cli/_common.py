@@ -65,6 +65,53 @@ class Gender(click.ParamType):
             self.fail(str(exc), param, ctx)
 
 
+class EngineChoice(click.Choice):
+    """A :class:`click.Choice` among the names an engine constant holds (a tuple, or a dict's keys), e.g.
+    ``EngineChoice("vfit_engine.garment.transfer:METHODS")``: the command line offers what the engine takes,
+    from the one list the engine checks.
+
+    The constant is read when the choices are first wanted (a value to check, ``--help`` to write), from its
+    module's source (:func:`engine_constant`): the engine imports its NumPy, SciPy and Numba at its modules'
+    tops, and no help loads them. ``first``: names the command adds before the engine's (``"auto"``);
+    ``without``: names it does not offer.
+    """
+
+    def __init__(self, constant: str, first: tuple = (), without: tuple = ()):
+        self.constant, self.first, self.without = constant, tuple(first), tuple(without)
+        self.case_sensitive = True
+
+    @functools.cached_property
+    def choices(self):
+        names = engine_constant(*self.constant.split(":"))
+        return self.first + tuple(n for n in names if n not in self.without)
+
+
+def engine_constant(module, name):
+    """The names an engine constant holds (a tuple's items, a dict's keys), read from the literal assigned to
+    it in its module's source, so the engine is not imported; a constant that is not a literal there is
+    imported (``module`` ``"vfit_engine.drape.setup"``, ``name`` ``"REST_MODES"``)."""
+    import ast
+    import importlib
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(importlib.util.find_spec("vfit_engine").origin).parent  # finds the package, runs nothing
+    source = root.joinpath(*module.split(".")[1:]).with_suffix(".py").read_text(encoding="utf-8")
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.Assign) and [t.id for t in node.targets if isinstance(t, ast.Name)] == [name]:
+            try:
+                if isinstance(node.value, ast.Dict):
+                    return tuple(ast.literal_eval(k) for k in node.value.keys)
+                return tuple(ast.literal_eval(node.value))
+            except ValueError:  # not a literal: the module's own value
+                break
+    return tuple(getattr(importlib.import_module(module), name))
+
+
+#: ``--units`` of a mesh file: ``auto`` (from its height) or a unit of ``vfit_engine.units.LENGTH_UNITS``
+FILE_UNITS = EngineChoice("vfit_engine.units:LENGTH_UNITS", first=("auto",))
+
+
 class Terminated(KeyboardInterrupt):
     """Raised by the ``vfit`` group's SIGTERM handler: a SIGTERM ends a run as Ctrl-C does, and whoever
     catches KeyboardInterrupt can tell the two apart (exit 143 against 130)."""
@@ -95,22 +142,42 @@ def handle_errors(func):
     return wrapper
 
 
-def check_output_path(path: str, suffixes: tuple) -> None:
-    """Fail early (before any long computation) on an output path that cannot be written."""
+def check_output_path(path: str, suffixes: tuple, outdir: str | None = None) -> None:
+    """Fail early (before any long computation) on an output path that cannot be written: its suffix, its
+    directory, then a file made and removed there (``vfit_engine.io.atomic.check_writable``).
+
+    ``outdir``: the command's output directory, which it creates before writing: ``path`` may be in it while
+    it does not exist yet (then it is made for the check and removed again).
+    """
     import os
 
     from vfit_engine.errors import InputError
+    from vfit_engine.io.atomic import check_writable
 
     ext = os.path.splitext(path)[1].lower()
     if ext not in suffixes:
         raise InputError(f"cannot write {path}: use one of {', '.join(suffixes)}")
     d = os.path.dirname(os.path.abspath(path))
+    made = []
     if not os.path.isdir(d):
-        raise InputError(f"cannot write {path}: directory {d} does not exist")
-    if not os.access(d, os.W_OK):
-        raise InputError(f"cannot write {path}: directory {d} is not writable")
-    if os.path.isdir(path):
-        raise InputError(f"cannot write {path}: it is a directory")
+        if outdir is None or d != os.path.abspath(outdir):
+            raise InputError(f"cannot write {path}: directory {d} does not exist")
+        missing = d
+        while not os.path.exists(missing):
+            made.append(missing)
+            missing = os.path.dirname(missing)
+        try:
+            os.makedirs(d)
+        except OSError as exc:
+            raise InputError(f"cannot write {path}: cannot create {d}: {exc.strerror or exc}") from None
+    try:
+        check_writable(path)
+    finally:
+        for m in made:  # deepest first
+            try:
+                os.rmdir(m)
+            except OSError:
+                pass
 
 
 def write_json(path: str, payload: dict) -> None:

@@ -3,15 +3,13 @@ from types import SimpleNamespace
 
 import click
 
-from ._common import check_output_path, handle_errors, interruption, write_json
-from ._outdir import OutdirLock, check_outdir, clear_outputs
+from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
+from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs
 from ._progress import Progress, kernels_cached
-from .drape import body_targets, morph_options
+from .drape import body_targets, morph_options, user_files
 
 #: Files an animation writes into OUT (removed before a new run writes there).
 OUTPUT_GLOBS = ("frame_*.obj", "body_*.obj", "animation.glb", "preview.gif", "report.json")
-#: Colliders of an animation (``vfit_engine.animate.loop.COLLIDERS``; listed here so --help imports no numpy).
-COLLIDERS = ("mesh", "bone-spheres", "spheres")
 
 
 @click.command()
@@ -37,18 +35,18 @@ COLLIDERS = ("mesh", "bone-spheres", "spheres")
               help="Write frame_NNNN.obj (garment) and body_NNNN.obj every K frames, 0 the rest drape (0: none).")
 @click.option("--blend", type=click.FloatRange(0.0, 10.0), default=0.5, show_default=True,
               help="Seconds over which the motion is blended in from the A pose the garment is draped in.")
-@click.option("--collider", type=click.Choice(COLLIDERS), default="mesh", show_default=True,
+@click.option("--collider", type=EngineChoice("vfit_engine.animate.loop:COLLIDERS"), default="mesh", show_default=True,
               help="mesh = the exact body surface near the garment, moving every substep; bone-spheres = spheres "
                    "along the bones, spheres = the medial sphere cover, both following the bones (faster, "
                    "approximate).")
-@click.option("--skinning", type=click.Choice(["dqs", "lbs"]), default="dqs", show_default=True,
+@click.option("--skinning", type=EngineChoice("vfit_engine.body.skinning:METHODS"), default="dqs", show_default=True,
               help="How the body follows its bones: dual quaternions or linear blend.")
 @click.option("--material", default="cotton", show_default=True,
               help="silk, cotton, wool, denim, jersey, or a material .json file.")
 @click.option("--pin", default="auto", show_default=True,
               help="auto (waistbands and shoulders, attached to the body; they move with it), none, or a file of "
                    "garment vertex indices.")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--preview", is_flag=True, help="Also write OUT/preview.gif: the garment, coloured by yarn strain, "
                                               "on the moving body from the front and the side.")
@@ -93,7 +91,10 @@ def animate(ctx, garment, body_path, motion, speed, joint_map, travel, frames, f
         raise InputError(f"joint map not found: {joint_map}")
     check_outdir(outdir)
     if json_path:
-        check_output_path(json_path, (".json",))
+        check_output_path(json_path, (".json",), outdir=outdir)
+    inputs = dict(user_files(garment, body_path, pin, material), **{"--motion": None if motion == "walk" else motion,
+                                                                    "--joint-map": joint_map})
+    check_outputs(outdir, OUTPUT_GLOBS, inputs, extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
     o = SimpleNamespace(garment=garment, body_path=body_path, motion=motion, speed=speed, joint_map=joint_map,
                         travel=travel, frames=frames, fps=fps, every=every, blend=blend, collider=collider,
@@ -133,10 +134,13 @@ def _animate(o):
     progress = Progress(o.quiet, command="vfit animate")
     progress.stage(f"reading {os.path.basename(o.garment)} and the motion")
     g = load_garment(o.garment, units=o.units)
+    for w in g.warnings:  # as vfit drape says them: a unit that makes the garment absurd, an ignored binding
+        click.echo(f"Warning: {o.garment}: {w}", err=True)
     pins = o.pin if o.pin in ("auto", "none") else read_pin_file(o.pin, g.mesh.n_verts)
     model = BodyModel.load()
     settings = AnimateSettings(fps=o.fps, frames=o.frames, blend_s=o.blend, skinning=o.skinning, collider=o.collider)
-    clip = load_clip(model, o.motion, speed=o.speed, fps=o.fps, travel=o.travel, joint_map=o.joint_map)
+    clip = load_clip(model, o.motion, speed=o.speed, fps=o.fps, travel=o.travel, joint_map=o.joint_map,
+                     until=o.frames / o.fps)  # the last frame's time (animate.loop.pose_frames)
     tag_gender = garment_gender(g)
     progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
                    f"reading the body {o.body_path}" if o.body_path else "loading the default body")

@@ -93,9 +93,10 @@ def batch(ctx, job_file, outdir, workers, scheduler, retries, keep_meshes, retry
       vfit batch job.yaml -o out/ --workers 2
       vfit batch job.yaml -o out/ --scheduler tcp://head:8786 --keep-meshes
     """
-    from ._outdir import OutdirLock, check_outdir
+    from ._outdir import OutdirLock, check_outdir, check_outputs
 
     check_outdir(outdir)
+    check_outputs(outdir, ("summary.json",), {"JOB": job_file})
     if scheduler is not None and workers is not None:
         raise click.UsageError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
     try:

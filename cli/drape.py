@@ -5,14 +5,10 @@ from types import SimpleNamespace
 import click
 
 from . import morph as _morph
-from ._common import check_output_path, handle_errors, interruption, write_json
-from ._outdir import OutdirLock, check_outdir, clear_outputs
+from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
+from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs
 from ._progress import Progress, kernels_cached
 
-#: Garment transfer methods (``vfit_engine.garment.transfer.METHODS``; listed here so --help imports no numpy).
-TRANSFER_METHODS = ("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none")
-#: Colliders (``vfit_engine.drape.colliders.COLLIDERS``).
-COLLIDERS = ("mesh", "spheres", "bone-spheres", "ellipsoids", "hulls")
 #: ``vfit morph`` options reused here (same names, types and help), so the commands agree.
 MORPH_OPTIONS = ("gender", "height", "weight") + _morph.GIRTH_OPTIONS + ("definition",)
 #: Files a drape writes into OUTDIR (removed before a new run writes there, so none is left from an
@@ -20,8 +16,6 @@ MORPH_OPTIONS = ("gender", "height", "weight") + _morph.GIRTH_OPTIONS + ("defini
 OUTPUT_GLOBS = ("final.obj", "final.ply", "final.glb", "final_fine.*", "body.obj", "body.ply", "body.glb",
                 "report.json", "preview.png", "fit.ply", "scene.glb", "drape.gif", "frame_*.obj", "frame_*.ply",
                 "frame_*.glb")
-#: Fit maps a picture can show (``vfit_engine.fit.outputs.PICTURE_MAPS``).
-MAPS = ("strain", "ease", "pressure")
 #: An unpinned garment that did not settle and whose mean height fell by more than this (m) slid down the
 #: body: the error says so.
 FELL_M = 0.05
@@ -68,22 +62,25 @@ def body_targets(body_path, girths, height, weight):
 @morph_options
 @click.option("--material", default="cotton", show_default=True,
               help="silk, cotton, wool, denim, jersey, or a material .json file (keys with units: see README).")
-@click.option("--rest", type=click.Choice(["garment", "graded"]), default="garment", show_default=True,
+@click.option("--rest", type=EngineChoice("vfit_engine.drape.setup:REST_MODES"), default="garment",
+              show_default=True,
               help="The cloth's own size: garment = the garment as given (a size M shirt on a large body is "
                    "tight, and the report says where); graded = made to measure: the garment graded to this "
                    "body first (MakeHuman's refit), so it fits any body.")
-@click.option("--transfer", type=click.Choice(TRANSFER_METHODS), default="auto", show_default=True,
+@click.option("--transfer", type=EngineChoice("vfit_engine.garment.transfer:METHODS"), default="auto",
+              show_default=True,
               help="How the garment is moved from the body it was made for to this one to start the drape "
                    "(only the start; the rest shape is --rest): auto = mhclo-delta when a .mhclo is beside "
                    "the garment and the body has its helper vertices, else dqs; none = start where it is.")
-@click.option("--collider", type=click.Choice(COLLIDERS), default="mesh", show_default=True,
+@click.option("--collider", type=EngineChoice("vfit_engine.drape.colliders:COLLIDERS"), default="mesh",
+              show_default=True,
               help="mesh = the exact body surface; spheres, bone-spheres, ellipsoids, hulls = shapes fitted "
                    "to the body: faster to move but approximate (BENCHMARKS.md: how far each lets cloth sink "
                    "in or float).")
 @click.option("--pin", default="auto", show_default=True,
               help="auto (waistbands and shoulders, attached to the body), none, or a text file of garment "
                    "vertex indices (0-based, one per line).")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--frames", type=click.IntRange(1, 100000), default=None,
               help="Most frames to simulate (60 per simulated second; 20 s) [default: 1200].")
@@ -96,11 +93,12 @@ def body_targets(body_path, girths, height, weight):
                    "trousers or a dress longer than the legs pool on it.")
 @click.option("--every", type=click.IntRange(0, 100000), default=10, show_default=True,
               help="Write frame_NNNN every K frames, frame_0000 being the start (0: none).")
-@click.option("--format", "fmt", type=click.Choice(["obj", "ply", "glb"]), default="obj", show_default=True,
+@click.option("--format", "fmt", type=EngineChoice("vfit_engine.io.mesh:FORMATS"), default="obj", show_default=True,
               help="Mesh format of final, body and frame files (glb: glTF for viewers, vertices split at UV seams).")
 @click.option("--preview", is_flag=True, help="Also write OUTDIR/preview.png: body and garment from the front, "
                                               "side and back, the garment coloured by --map, with a colour bar.")
-@click.option("--map", "map_name", type=click.Choice(MAPS), default="strain", show_default=True,
+@click.option("--map", "map_name", type=EngineChoice("vfit_engine.fit.outputs:PICTURE_MAPS"), default="strain",
+              show_default=True,
               help="Fit map that colours the preview, the GIF and scene.glb: yarn strain (%), ease (mm from the "
                    "skin) or contact pressure (kPa).")
 @click.option("--gif", is_flag=True, help="Also write OUTDIR/drape.gif: the drape frame by frame, from the front.")
@@ -143,22 +141,55 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
         raise InputError(f"garment file not found: {garment}")
     check_outdir(outdir)
     if json_path:
-        check_output_path(json_path, (".json",))
+        check_output_path(json_path, (".json",), outdir=outdir)
+    check_outputs(outdir, OUTPUT_GLOBS, user_files(garment, body_path, pin, material), extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
     opts = SimpleNamespace(garment=garment, body_path=body_path, material=material, rest=rest, transfer=transfer,
                            collider=collider, pin=pin, units=units, frames=frames, refine=refine, ground=ground,
                            every=every, fmt=fmt,
                            preview=preview, map_name=map_name, gif=gif, outdir=outdir, json_path=json_path, quiet=quiet,
                            gender=gender if gender_given else None, weight=weight, definition=definition,
-                           targets=targets, t_start=t_start)
+                           targets=targets, t_start=t_start, cleared=False)
     try:
         with OutdirLock(outdir):
             code = _drape(opts)
-    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (the vfit group's) during the set-up
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (the vfit group's) outside the drape and its outputs
         name, code = interruption(exc)
-        click.echo(f"Error: interrupted by {name} before the drape started; nothing written", err=True)
+        if opts.cleared:  # after the earlier run's outputs were removed: say what is there
+            click.echo(f"Error: interrupted by {name}; {_kept(outdir) or 'no output'} in {outdir}", err=True)
+        else:
+            click.echo(f"Error: interrupted by {name} before the drape started; nothing written", err=True)
     if code:
         ctx.exit(code)
+
+
+def user_files(garment, body_path=None, pin=None, material=None):
+    """The files a drape reads that the user named (or that go with one): what (for the message) -> path."""
+    import os
+
+    from vfit_engine.garment.garment import find_mhclo
+
+    files = {"garment": garment, "the garment's binding": find_mhclo(garment) if os.path.isfile(garment) else None,
+             "--body": body_path}
+    if pin not in (None, "auto", "none"):
+        files["--pin"] = pin
+    if material is not None and os.path.isfile(material):  # else a built-in material's name
+        files["--material"] = material
+    return files
+
+
+def _kept(outdir):
+    """The outputs present in OUTDIR, as a user reads them: 'final.obj, report.json and 3 frame files'."""
+    import glob
+    import os
+
+    names = sorted({os.path.basename(p) for pattern in OUTPUT_GLOBS
+                    for p in glob.glob(os.path.join(glob.escape(outdir), pattern))})
+    frames = [n for n in names if n.startswith("frame_")]
+    parts = [n for n in names if not n.startswith("frame_")]
+    if frames:
+        parts.append(f"{len(frames)} frame file{'s' if len(frames) > 1 else ''}")
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1] if parts else ""
 
 
 def _drape(o):
@@ -200,19 +231,46 @@ def _drape(o):
     for w in setup.pins.info.get("warnings", []):
         click.echo(f"Warning: {o.garment}: {w}", err=True)
     clear_outputs(o.outdir, OUTPUT_GLOBS)
+    o.cleared = True
     context = dict(garment=o.garment, garment_units=g.units, garment_vertices=g.mesh.n_verts,
                    garment_gender=tag_gender, warnings=list(g.warnings), body=body.description)
     result, written = _simulate(setup, settings, o, context)
     if isinstance(result, int):  # interrupted: its exit code
         return result
-    report = _finish(setup, result, model, o, written, context, time.perf_counter() - o.t_start)
-    write_json(os.path.join(o.outdir, "report.json"), report)
-    if o.json_path:
-        write_json(o.json_path, report)
+    try:
+        report = _finish(setup, result, model, o, written, context, time.perf_counter() - o.t_start)
+        write_json(os.path.join(o.outdir, "report.json"), report)
+        if o.json_path:
+            try:
+                write_json(o.json_path, report)
+            except InputError as exc:  # it was writable before the drape: not a reason to hide an exit 3
+                if result.converged:
+                    raise
+                click.echo(f"Warning: {exc}; the report is in {os.path.join(o.outdir, 'report.json')}", err=True)
+    except KeyboardInterrupt as exc:
+        return _interrupted_writing(setup, result, o, written, context, exc)
     if not o.quiet:
         _summary(g, setup, result, report)
         click.echo(f"wrote {', '.join(written + [os.path.join(o.outdir, 'report.json')])}")
     return 0 if result.converged else _unsettled(setup, result, settings, report)
+
+
+def _interrupted_writing(setup, result, o, written, context, exc):
+    """Ctrl-C or SIGTERM after the drape, while its outputs were written: a report marked interrupted (listing
+    the outputs complete) and the error line naming them; returns the exit code (130 / 143)."""
+    import os
+
+    from vfit_engine.drape import drape_report
+
+    name, code = interruption(exc)
+    rep = drape_report(setup, outputs=written, interrupted=dict(signal=name, frames=result.frames),
+                       interrupted_while="writing the outputs of the finished drape", **context)
+    write_json(os.path.join(o.outdir, "report.json"), rep)
+    if o.json_path:
+        write_json(o.json_path, rep)
+    click.echo(f"Error: interrupted by {name} after the drape ({result.frames} frames) while writing its outputs; "
+               f"kept {_kept(o.outdir)} in {o.outdir} (report.json says interrupted)", err=True)
+    return code
 
 
 def _unsettled(setup, result, settings, report):
@@ -221,12 +279,24 @@ def _unsettled(setup, result, settings, report):
     if setup.pins.indices.size == 0 and drop > FELL_M:
         # unpinned, it slides down the body (or falls off it): say so, not only that it kept moving
         click.echo(f"Error: the garment slid {100 * drop:.0f} cm down the body in {result.frames} frames and did "
-                   "not stop: nothing holds it up without pins; use --pin auto or a pin file", err=True)
+                   f"not stop: {_no_pins(setup.pins.info)}", err=True)
         return 3
     click.echo(f"Error: the cloth did not settle within {settings.max_frames} frames: {report['settle']['test']} "
                f"failed (last frame: {100 * result.settle['share_moving']:.2f} % of the vertices moved more "
                f"than {1000 * settings.settle_step:g} mm, the fastest {result.settle['max_step_mm']:.2f} mm)", err=True)
     return 3
+
+
+def _no_pins(info):
+    """Why nothing held the garment up, and what to do, from the pins' summary (``Pins.info``): --pin auto
+    in use is not the advice for a garment it could not pin."""
+    mode, inside = info.get("mode"), info.get("dropped_inside", 0)
+    if mode == "none":
+        return "nothing holds it up without pins; use --pin auto or a pin file"
+    let_go = f" (its {inside} pin(s) lay inside the body and were let go)" if inside else ""
+    found = "--pin auto held nothing" if mode == "auto" else "the pin file held nothing"
+    return (f"{found}{let_go}; give a pin file of the vertices that rest on the body (a waistband, the "
+            "shoulders), or check that the garment is made to be worn on this body")
 
 
 def _simulate(setup, settings, o, context):
@@ -295,23 +365,25 @@ def _finish(setup, result, model, o, written, context, elapsed):
     from vfit_engine.fit.table import FitTable, summary_line
     from vfit_engine.io.mesh import write_mesh
 
-    final = os.path.join(o.outdir, f"final.{o.fmt}")
-    _write_garment(final, setup, result.pos, context)
     if result.fine is not None:  # the subdivided cloth as simulated (no UVs: its vertices are not the garment's)
         fine = os.path.join(o.outdir, f"final_fine.{o.fmt}")
         write_mesh(fine, result.fine, header=["vfit drape: the subdivided cloth as simulated (--refine); metres, Y up"])
         written.append(fine)
+    final = os.path.join(o.outdir, f"final.{o.fmt}")
+    _write_garment(final, setup, result.pos, context)
+    written.append(final)
     body_file = os.path.join(o.outdir, f"body.{o.fmt}")
     write_body(body_file, model, setup.body.verts,
                header=[f"vfit drape: the body draped on ({setup.body.description.get('source')}); metres, Y up"])
-    written += [final, body_file]
+    written.append(body_file)
     o.progress.stage("measuring the fit: maps, the table per body region, the scene")
     maps = fit_maps(setup, result.pos)
     rows = FitTable(setup.body, model).rows(setup, result.pos, maps)
     paths = {name: os.path.join(o.outdir, name) for name in ("fit.ply", "scene.glb", "preview.png", "drape.gif")}
     write_fit_ply(paths["fit.ply"], setup, result.pos, maps)
+    written.append(paths["fit.ply"])
     write_scene(paths["scene.glb"], setup, result.pos, model, maps, o.map_name)
-    written += [paths["fit.ply"], paths["scene.glb"]]
+    written.append(paths["scene.glb"])
     if o.preview:
         write_preview(paths["preview.png"], setup, result.pos, model, maps, o.map_name)
         written.append(paths["preview.png"])

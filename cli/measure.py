@@ -1,15 +1,17 @@
 """``vfit measure``: measure a body mesh with hm08 topology."""
 import click
 
-from ._common import check_output_path, fmt_table, handle_errors, write_json
+from ._common import FILE_UNITS, EngineChoice, check_output_path, fmt_table, handle_errors, write_json
+from ._outdir import check_outputs
 
 
 @click.command()
 @click.argument("body", type=click.Path(dir_okay=False))
-@click.option("--definition", type=click.Choice(["iso", "makehuman", "spline"]), default="iso", show_default=True,
+@click.option("--definition", type=EngineChoice("vfit_engine.body.measure:DEFINITIONS"), default="iso",
+              show_default=True,
               help="iso = horizontal tape girths (convex hull of the torso section), makehuman = MakeHuman's "
                    "20 rulers, spline = profile curve through the section.")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the file (auto: from the body's height; MakeHuman exports are dm, vfit writes m).")
 @click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),
               help="Also write the figures as JSON.")
@@ -32,6 +34,7 @@ def measure(body, definition, units, json_path):
         raise InputError(f"{body}: no such file")
     if json_path:
         check_output_path(json_path, (".json",))
+    check_outputs(None, (), {"BODY": body}, extra_outputs=[json_path])
     from vfit_engine.body.bodyio import read_body
     from vfit_engine.body.measure import DENSITY, Measurer
     from vfit_engine.body.model import BodyModel

@@ -1,7 +1,8 @@
 """``vfit morph``: build a body to a customer's measurements."""
 import click
 
-from ._common import Gender, Quantity, check_output_path, fmt_table, handle_errors, seconds_since_start, write_json
+from ._common import (EngineChoice, Gender, Quantity, check_output_path, fmt_table, handle_errors, seconds_since_start,
+                      write_json)
 
 #: seconds after the program starts by which a failure's searches for the ranges reachable end (a search still
 #: running is cut): with cutting it, writing the error, ending the process (~0.2 s) and Python's own start
@@ -31,7 +32,8 @@ def girth_option(name, help_text):
 @girth_option("upper_arm", "Upper arm girth, cm (MakeHuman ruler).")
 @girth_option("thigh", "Thigh girth, cm (MakeHuman ruler).")
 @girth_option("calf", "Calf girth, cm (MakeHuman ruler).")
-@click.option("--definition", type=click.Choice(["iso", "makehuman", "spline"]), default="iso", show_default=True,
+@click.option("--definition", type=EngineChoice("vfit_engine.body.measure:DEFINITIONS"), default="iso",
+              show_default=True,
               help="How girths are measured: iso = horizontal tape (convex hull of the torso section), "
                    "makehuman = MakeHuman's rulers, spline = profile curve through the section.")
 @click.option("--search-time", "search_time", type=click.FloatRange(0.0, 600.0), default=None,
@@ -72,6 +74,7 @@ def morph(gender, height, weight, definition, search_time, output, json_path, qu
 
     from vfit_engine.body.bodyio import write_body
     from vfit_engine.body.measure import NAMES
+    from vfit_engine.body.model import N_BODY
     from vfit_engine.body.morph import Morpher
 
     morpher = Morpher()
@@ -96,7 +99,7 @@ def morph(gender, height, weight, definition, search_time, output, json_path, qu
         if res.estimated:
             click.echo(f"(estimated): not given, so the population's value for the rest of this body "
                        f"(± its standard error; {_source()})")
-    click.echo(f"wrote {output} (13,380 body vertices, metres, Y up) in {elapsed:.2f} s")
+    click.echo(f"wrote {output} ({N_BODY:,} body vertices, metres, Y up) in {elapsed:.2f} s")
     if json_path:
         write_json(json_path, {
             "command": "morph",

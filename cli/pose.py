@@ -1,11 +1,9 @@
 """``vfit pose``: a body (a file, the default one, or one built to measurements) in a BVH pose."""
 import click
 
-from ._common import check_output_path, handle_errors, write_json
+from ._common import EngineChoice, check_output_path, handle_errors, write_json
+from ._outdir import check_outputs
 from .drape import body_targets, morph_options
-
-#: Skinning methods (``vfit_engine.body.skinning``; listed here so --help imports no numpy).
-SKINNING = ("dqs", "lbs")
 
 
 @click.command()
@@ -22,7 +20,7 @@ SKINNING = ("dqs", "lbs")
               help="Walking speed, m/s (--pose walk): sets the stride's time through cadence.")
 @click.option("--gif", "gif_path", default=None, type=click.Path(dir_okay=False),
               help="Also write every frame of the motion as an animated GIF (the body from the side).")
-@click.option("--skinning", type=click.Choice(SKINNING), default="dqs", show_default=True,
+@click.option("--skinning", type=EngineChoice("vfit_engine.body.skinning:METHODS"), default="dqs", show_default=True,
               help="dqs = dual-quaternion skinning (keeps volume at twisted joints), lbs = linear blend skinning.")
 @click.option("-o", "--output", default="posed.obj", show_default=True, type=click.Path(dir_okay=False),
               help="Posed body to write: .obj (with UVs) or .ply; metres, Y up, hm08 vertex order.")
@@ -62,23 +60,30 @@ def pose(ctx, body_path, pose_path, frame, speed, gif_path, skinning, output, js
     walk = pose_path == "walk"
     if not walk and not os.path.isfile(pose_path):
         raise InputError(f"pose file not found: {pose_path} (or use --pose walk)")
+    check_outputs(None, (), {"--body": body_path, "--pose": None if walk else pose_path},
+                  extra_outputs=[output, json_path, gif_path])
 
     from vfit_engine.body.bodyio import write_body
     from vfit_engine.body.gait import walk_motion
-    from vfit_engine.body.model import BodyModel
-    from vfit_engine.body.pose import pose_body, skinning_for
+    from vfit_engine.body.model import N_BODY, BodyModel
+    from vfit_engine.body.pose import joint_naming, pose_body, skinning_for
     from vfit_engine.body.resolve import resolve_body
     from vfit_engine.body.self_contact import lift_hands
     from vfit_engine.io.bvh import read_bvh
 
     model = BodyModel.load()
-    motion = walk_motion(model, speed=speed) if walk else read_bvh(pose_path)
-    if frame >= len(motion.frames):
+    one = not (walk or gif_path)  # one frame of the file is all the body needs: a long file is not held whole
+    motion = walk_motion(model, speed=speed) if walk else read_bvh(pose_path, frame=frame if one else None)
+    if not one and frame >= len(motion.frames):
         raise InputError(f"{pose_path}: frame {frame} asked for, the {'walk' if walk else 'file'} has "
                          f"{len(motion.frames)} (use --frame 0..{len(motion.frames) - 1})")
+    if not walk:  # vfit animate's check: a file in other names would leave the body unposed
+        joint_naming(model, motion, pose_path, fix="use a pose in the rig's bone names (MakeHuman's poses), or "
+                                                   "vfit animate --motion FILE --joint-map MAP.json for another "
+                                                   "skeleton")
     body = resolve_body(model, body_path, targets, weight, gender, definition)
     skin = skinning_for(model, len(body.verts))
-    posed = pose_body(model, body.verts, motion, frame, method=skinning, skinning=skin)
+    posed = pose_body(model, body.verts, motion, 0 if one else frame, method=skinning, skinning=skin)
     write_body(output, model, lift_hands(model, body.verts)(posed.verts),
                header=[f"vfit pose: {os.path.basename(pose_path)} frame {frame}, {skinning}; metres, Y up"])
     if gif_path:
@@ -88,7 +93,7 @@ def pose(ctx, body_path, pose_path, frame, speed, gif_path, skinning, output, js
         click.echo(f"vfit pose: {os.path.basename(pose_path)} frame {frame} on the {body.description.get('source')} "
                    f"body: {posed.named} of the rig's {len(model.bone_names)} bones posed from the file, "
                    f"{skinning} skinning")
-    click.echo(f"wrote {output} (13,380 body vertices, metres, Y up){' and ' + gif_path if gif_path else ''} in "
+    click.echo(f"wrote {output} ({N_BODY:,} body vertices, metres, Y up){' and ' + gif_path if gif_path else ''} in "
                f"{elapsed:.2f} s")
     if json_path:
         write_json(json_path, dict(command="pose", pose=os.path.abspath(pose_path), frame=frame, skinning=skinning,

@@ -1,7 +1,8 @@
 """``vfit segment``: colour a body by part (head, torso, arms, hands, legs, feet ...)."""
 import click
 
-from ._common import Quantity, check_output_path, fmt_table, handle_errors, write_json
+from ._common import FILE_UNITS, Quantity, check_output_path, fmt_table, handle_errors, write_json
+from ._outdir import check_outputs
 
 #: One colour per part of ``vfit_engine.body.segment.PARTS`` (left/right in related shades).
 PALETTE = (
@@ -17,7 +18,7 @@ PALETTE = (
               help="Coloured body to write: .ply (binary, per-vertex colours); metres, Y up.")
 @click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),
               help="Also write per-part vertex counts, skin-weight agreement, voxel size and timings.")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Length unit of BODY (auto: guessed from its height).")
 @click.option("--voxel", type=Quantity("mm", 1, 50), default=5.0, show_default=True,
               help="Voxel size of the region growing, mm.")
@@ -46,11 +47,12 @@ def segment(body, output, json_path, units, voxel, quiet):
 
     if not os.path.isfile(body):
         raise InputError(f"{body}: no such file")
+    check_outputs(None, (), {"BODY": body}, extra_outputs=[output, json_path])
 
     import numpy as np
 
     from vfit_engine.body.bodyio import body_mesh, read_body
-    from vfit_engine.body.model import BodyModel
+    from vfit_engine.body.model import N_BODY, BodyModel
     from vfit_engine.body.segment import segment as run_segment
     from vfit_engine.io.mesh import write_mesh
 
@@ -70,7 +72,7 @@ def segment(body, output, json_path, units, voxel, quiet):
         click.echo(f"agreement with skin weights: {seg.agreement * 100:.1f} % of vertices")
         click.echo(f"voxels: {voxel:g} mm, grid {'x'.join(map(str, seg.grid_shape))}, {seg.solid_count} solid; "
                    f"span fill {fs['span']['pushes']} pushes vs {fs['stack']['pushes']} (plain)")
-    click.echo(f"wrote {output} (13,380 body vertices coloured by part) in {elapsed:.2f} s")
+    click.echo(f"wrote {output} ({N_BODY:,} body vertices coloured by part) in {elapsed:.2f} s")
     if json_path:
         write_json(json_path, {
             "command": "segment",

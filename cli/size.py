@@ -3,8 +3,9 @@ from types import SimpleNamespace
 
 import click
 
-from ._common import check_output_path, fmt_table, handle_errors, interruption, write_json
-from .drape import body_targets, morph_options
+from ._common import FILE_UNITS, check_output_path, fmt_table, handle_errors, interruption, write_json
+from ._outdir import check_outputs
+from .drape import body_targets, morph_options, user_files
 
 #: The sizes (``vfit_engine.sizes.SIZE_NAMES``; listed here so --help imports no numpy).
 SIZE_NAMES = ("XS", "S", "M", "L", "XL")
@@ -22,7 +23,7 @@ NOT_JUDGED = 3
               help="Comma-separated EN 13402 letter sizes to try.")
 @click.option("--material", default="cotton", show_default=True,
               help="silk, cotton, wool, denim, jersey, or a material .json file (keys with units: see README).")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("--workers", type=click.IntRange(1, 256), default=None,
               help="Sizes tried at once, each in its own process [default: the cores available].")
@@ -70,6 +71,7 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
         raise InputError(f"body file not found: {body_path}")
     if json_path:
         check_output_path(json_path, (".json",))
+    check_outputs(None, (), user_files(garment, body_path, material=material), extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
     o = SimpleNamespace(garment=garment, names=names, material=material, units=units, workers=workers,
                         json_path=json_path, quiet=quiet, t_start=t_start,

@@ -1,8 +1,9 @@
 """``vfit transfer``: move a garment made for one body onto another body."""
 import click
 
-from ._common import check_output_path, handle_errors
-from .drape import morph_options
+from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors
+from ._outdir import check_outputs
+from .drape import morph_options, user_files
 
 
 @click.command()
@@ -14,7 +15,8 @@ from .drape import morph_options
               help="Body to move the garment to (.obj/.ply, hm08 topology); or give measurement options "
                    "instead and vfit builds it.")
 @morph_options
-@click.option("--method", type=click.Choice(["auto", "mhclo", "mhclo-delta", "dqs", "lbs"]), default="auto",
+# every transfer method but none (the garment would stay where it is: that is vfit drape --transfer none)
+@click.option("--method", type=EngineChoice("vfit_engine.garment.transfer:METHODS", without=("none",)), default="auto",
               show_default=True,
               help="mhclo = re-fit the garment's .mhclo binding on the target (needs a body vfit builds from "
                    "measurements: a body file lacks the helper vertices); mhclo-delta = the garment plus the "
@@ -23,7 +25,7 @@ from .drape import morph_options
                    "Every method but mhclo then gives back any clearance from the skin the garment lost.")
 @click.option("--k", "k", type=click.IntRange(1, 64), default=6, show_default=True,
               help="Body vertices each garment vertex follows (dqs/lbs).")
-@click.option("--units", type=click.Choice(["auto", "m", "dm", "cm", "mm"]), default="auto", show_default=True,
+@click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
 @click.option("-o", "--output", default="transferred.obj", show_default=True, type=click.Path(dir_okay=False),
               help="Garment to write (.obj or .ply): the input's vertex order, faces and UVs, in metres.")
@@ -62,11 +64,12 @@ def transfer(ctx, garment, from_path, to_path, method, k, units, output, quiet, 
         if path and not os.path.isfile(path):
             raise InputError(f"{what} file not found: {path}")
     check_output_path(output, (".obj", ".ply"))
+    check_outputs(None, (), dict(user_files(garment), **{"--from": from_path, "--to": to_path}),
+                  extra_outputs=[output])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
 
     from vfit_engine.body.model import BodyModel
     from vfit_engine.garment.garment import load_garment
-    from vfit_engine.garment.transfer import _mhclo_top
     from vfit_engine.garment.transfer import transfer as transfer_verts
     from vfit_engine.io.mesh import write_mesh
 
@@ -97,7 +100,7 @@ def transfer(ctx, garment, from_path, to_path, method, k, units, output, quiet, 
     if method == "auto":
         method = "dqs"
         if binding is not None:
-            if min(source.shape[0], target.shape[0]) > _mhclo_top(binding):
+            if min(source.shape[0], target.shape[0]) > binding.top_vertex:
                 method = "mhclo-delta"
             else:
                 click.echo("Warning: the target body file has no helper vertices, which the garment's .mhclo "
@@ -146,7 +149,8 @@ def _binding(g, method):
 
 
 def _read_body(path, model, helpers):
-    """Body vertices in metres: all 19,158 when ``helpers`` and the file has them, else the 13,380 body ones."""
+    """Body vertices in metres: all ``N_VERTS`` (with MakeHuman's helpers) when ``helpers`` and the file has them,
+    else the ``N_BODY`` body ones."""
     from vfit_engine.body.bodyio import read_body
     from vfit_engine.body.model import N_VERTS
     from vfit_engine.io.mesh import read_mesh

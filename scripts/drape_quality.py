@@ -216,6 +216,9 @@ def _json_default(value):
 
 
 def main(argv=None):
+    from vfit_engine.drape.setup import REST_MODES
+    from vfit_engine.garment.transfer import METHODS
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog="\n".join(__doc__.splitlines()[2:]))
@@ -223,9 +226,9 @@ def main(argv=None):
     ap.add_argument("--deltas", type=parse_deltas, default=(-6.0, 0.0, 8.0),
                     help="waist and hips changes of the case bodies, cm, comma-separated (default: -6,0,8)")
     ap.add_argument("--material", default="cotton")
-    ap.add_argument("--transfer", default="auto", choices=("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none"),
+    ap.add_argument("--transfer", default="auto", choices=METHODS,
                     help="how the garment is moved onto the case body to start (default: auto, as vfit drape)")
-    ap.add_argument("--rest", default="garment", choices=("garment", "graded"),
+    ap.add_argument("--rest", default="garment", choices=REST_MODES,
                     help="the cloth's rest shape (default: garment, as vfit drape)")
     ap.add_argument("--frames", type=int, default=None, help="most frames per drape (default: vfit drape's)")
     ap.add_argument("--check", action="store_true",

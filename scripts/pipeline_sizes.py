@@ -70,13 +70,17 @@ def _json_default(value):
 
 
 def main(argv=None):
+    from vfit_engine.drape.setup import REST_MODES
+    from vfit_engine.garment.transfer import METHODS
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--garment", action="append", help="garment name(s) (default: all)")
     ap.add_argument("--size", action="append", choices=[s[0] for s in SIZES["female"]],
                     help="size(s) (default: all)")
     ap.add_argument("--material", default="cotton")
-    ap.add_argument("--transfer", default="auto", choices=("auto", "mhclo", "mhclo-delta", "dqs", "lbs"))
-    ap.add_argument("--rest", default="garment", choices=("garment", "graded"),
+    # every transfer method but none, which --compare drapes with
+    ap.add_argument("--transfer", default="auto", choices=[m for m in METHODS if m != "none"])
+    ap.add_argument("--rest", default="garment", choices=REST_MODES,
                     help="the cloth's rest shape (default: garment, as vfit drape)")
     ap.add_argument("--frames", type=int, default=None, help="most frames per drape (default: vfit drape's)")
     ap.add_argument("--compare", action="store_true", help="also drape with --transfer none and compare frames")

@@ -18,22 +18,141 @@ def run(*args):
     return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
 
 
-@pytest.mark.parametrize("args", [["--help"], ["morph", "--help"], ["measure", "--help"], ["drape", "--help"],
-                                  ["segment", "--help"], ["transfer", "--help"], ["size", "--help"],
-                                  ["batch", "--help"], ["pose", "--help"]])
-def test_help(args):
-    r = run(*args)
+def command_paths(group=cli, path=()):
+    """Every command of the ``vfit`` group by its path, subcommands of a group included, as the group lists
+    them (not a list kept by hand)."""
+    import click
+
+    ctx = click.Context(group)
+    out = []
+    for name in group.list_commands(ctx):
+        command = group.get_command(ctx, name)
+        out.append((*path, name))
+        if isinstance(command, click.Group):
+            out += command_paths(command, (*path, name))
+    return out
+
+
+COMMAND_PATHS = command_paths()
+
+
+def test_every_command_is_found():
+    from vfit_cli.main import COMMANDS
+
+    assert {p[0] for p in COMMAND_PATHS} == set(COMMANDS) and ("animate",) in COMMAND_PATHS
+
+
+@pytest.mark.parametrize("path", [(), *COMMAND_PATHS], ids=lambda p: " ".join(p) or "vfit")
+def test_help(path):
+    r = run(*path, "--help")
     assert r.exit_code == 0 and "Usage" in r.output
 
 
 def test_help_does_not_import_numba():
+    """No help loads Numba, SciPy or the batch's libraries; ``vfit --help`` (the commands' modules loaded, their
+    option types built) loads no NumPy either: the engine constants behind the choices are read when a help
+    lists them."""
     code = ("import sys\nfrom click.testing import CliRunner\nfrom vfit_cli.main import cli\n"
-            "for a in (['--help'], ['morph', '--help'], ['measure', '--help'], ['segment', '--help'], ['transfer', '--help'],\n"
-            "          ['drape', '--help'], ['size', '--help'], ['batch', '--help'], ['pose', '--help']):\n"
-            "    assert CliRunner().invoke(cli, a).exit_code == 0\n"
-            "print('numba' in sys.modules, 'scipy' in sys.modules, 'distributed' in sys.modules, 'pyarrow' in sys.modules)")
+            "assert CliRunner().invoke(cli, ['--help']).exit_code == 0\n"
+            "print('numpy' in sys.modules)\n"
+            f"for path in {COMMAND_PATHS!r}:\n"
+            "    assert CliRunner().invoke(cli, [*path, '--help']).exit_code == 0\n"
+            "print(*(m in sys.modules for m in ('numba', 'scipy', 'distributed', 'pyarrow')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.split() == ["False"] * 4
+    assert out.split() == ["False"] * 5
+
+
+def cli_params():
+    """(command path, parameter) of every parameter of every command."""
+    import click
+
+    out = []
+    for path in COMMAND_PATHS:
+        ctx = click.Context(cli)
+        command = cli
+        for name in path:
+            command = command.get_command(ctx, name)
+        out += [(path, p) for p in command.params]
+    return out
+
+
+def test_every_choice_list_is_the_engines():
+    """No command keeps a list of choices by hand: each is an engine constant (``EngineChoice``)."""
+    import click
+
+    from vfit_cli._common import EngineChoice
+
+    choices = [(path, p.name, p.type) for path, p in cli_params() if isinstance(p.type, click.Choice)]
+    assert len(choices) >= 15
+    for path, name, ptype in choices:
+        assert isinstance(ptype, EngineChoice), f"vfit {' '.join(path)} --{name}: a list by hand"
+
+
+def choice_of(command, option):
+    return next(p.type.choices for path, p in cli_params() if path == (command,) and p.name == option)
+
+
+def test_choices_tie_to_the_engine():
+    """Each command's choices are the engine's lists (the transfer methods of vfit drape and vfit transfer,
+    the units of every command that reads a mesh, ...)."""
+    from vfit_engine.animate.loop import COLLIDERS as ANIMATE_COLLIDERS
+    from vfit_engine.body.measure import DEFINITIONS
+    from vfit_engine.body.skinning import METHODS as SKINNING
+    from vfit_engine.drape.colliders import COLLIDERS
+    from vfit_engine.drape.setup import REST_MODES
+    from vfit_engine.fit.outputs import PICTURE_MAPS
+    from vfit_engine.garment.transfer import METHODS
+    from vfit_engine.io.mesh import FORMATS
+    from vfit_engine.units import LENGTH_UNITS
+
+    assert choice_of("drape", "transfer") == METHODS
+    assert choice_of("transfer", "method") == tuple(m for m in METHODS if m != "none")
+    assert choice_of("drape", "collider") == COLLIDERS and choice_of("animate", "collider") == ANIMATE_COLLIDERS
+    assert choice_of("drape", "rest") == REST_MODES and choice_of("drape", "fmt") == FORMATS
+    assert choice_of("drape", "map_name") == tuple(PICTURE_MAPS)
+    assert choice_of("pose", "skinning") == choice_of("animate", "skinning") == SKINNING
+    with_units = [path[0] for path, p in cli_params() if p.name == "units"]
+    assert set(with_units) == {"animate", "drape", "measure", "segment", "size", "transfer"}
+    for command in with_units:
+        assert choice_of(command, "units") == ("auto", *LENGTH_UNITS), command
+    with_definition = [path[0] for path, p in cli_params() if p.name == "definition"]
+    assert len(with_definition) >= 7
+    for command in with_definition:
+        assert choice_of(command, "definition") == DEFINITIONS, command
+
+
+def test_body_options_tie_to_the_engine():
+    """vfit morph's girth options are the engine's girths, and its ranges those a batch job checks."""
+    from vfit_cli._common import Quantity
+    from vfit_cli.morph import GIRTH_OPTIONS
+    from vfit_engine.batch.job import RANGES
+    from vfit_engine.body.measure import NAMES
+
+    assert GIRTH_OPTIONS == tuple(n.replace("-", "_") for n in NAMES if n != "height")
+    ranges = {p.name: (p.type.lo, p.type.hi) for path, p in cli_params()
+              if path == ("morph",) and isinstance(p.type, Quantity)}
+    assert ranges == RANGES
+
+
+def test_help_texts_tie_to_the_engine():
+    """Figures and names written into help texts (click cannot build them when asked) are the engine's."""
+    from vfit_engine.body.measure import DENSITY
+    from vfit_engine.body.model import BodyModel
+    from vfit_engine.body.segment import PARTS
+    from vfit_engine.drape.settings import DrapeSettings
+    from vfit_engine.garment.transfer import DEFAULT_K, MAX_K
+    from vfit_engine.sim.materials import PRESETS
+
+    params = {(path[0], p.name): p for path, p in cli_params()}
+    for command in ("animate", "drape", "size"):
+        assert params[command, "material"].help.startswith(", ".join(PRESETS) + ", or a material"), command
+    k = params["transfer", "k"]
+    assert (k.type.min, k.type.max, k.default) == (1, MAX_K, DEFAULT_K)
+    fps, frames = (DrapeSettings.__dataclass_fields__[k].default for k in ("fps", "max_frames"))
+    assert f"({fps:g} per simulated second; {frames / fps:g} s) [default: {frames}]" in params["drape", "frames"].help
+    assert f"into {len(PARTS)} parts" in run("segment", "--help").output
+    assert f"MakeHuman's {len(BodyModel.load().rulers)} rulers" in params["measure", "definition"].help
+    assert f"body volume x {DENSITY:g} kg/m^3" in params["morph", "weight"].help
 
 
 def test_help_lists_every_command():
@@ -48,7 +167,7 @@ def test_morph_imports_no_other_command(tmp_path):
     code = ("import sys\nfrom vfit_cli.main import cli\n"
             f"cli(['morph', '--height', '170', '-q', '-o', {str(tmp_path / 'b.obj')!r}], standalone_mode=False)\n"
             "print(sorted(m for m in sys.modules if m.startswith('vfit_cli.') and m[9:] in "
-            "('animate', 'batch', 'drape', 'measure', 'pose', 'segment', 'size', 'transfer')))\n")
+            f"{tuple(p[0] for p in COMMAND_PATHS if p[0] != 'morph')!r}))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.splitlines()[-1] == "[]"
 

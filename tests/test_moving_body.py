@@ -79,12 +79,12 @@ def test_floored_queries_are_exact_within_their_floor(moving):
     point within them exactly and every other as outside: against a still collider at the same time."""
     from vfit_engine._jit import njit
     from vfit_engine.collide.body_mesh import MeshCollider
-    from vfit_engine.kernels.collide_mesh import _query_point
+    from vfit_engine.kernels.collide_mesh import query_point
 
     @njit
     def floored(points, grid, max_out, max_in, out):
         for p in range(points.shape[0]):
-            out[p] = _query_point(points[p, 0], points[p, 1], points[p, 2], grid, True, max_out, max_in[p], True)[0]
+            out[p] = query_point(points[p, 0], points[p, 1], points[p, 2], grid, True, max_out, max_in[p], True)[0]
 
     col, v0, v1, tris = moving
     col.at(0.5)

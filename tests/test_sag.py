@@ -62,7 +62,7 @@ def test_a_ridge_gets_nothing_and_a_fingertip_is_capped():
 def test_make_contacts_moves_the_half_space_out_by_the_sag():
     """The contact generation kernel against its definition: a point is in contact when its distance less the
     body's extra thickness e is within skin + reach; its half-space is the tangent plane moved out by e."""
-    from vfit_engine.kernels.contact_make import _make_contacts
+    from vfit_engine.kernels.contact_make import make_contacts
 
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.1)
     body = MeshCollider(sphere.vertices, sphere.faces)
@@ -78,10 +78,10 @@ def test_make_contacts_moves_the_half_space_out_by_the_sag():
     st = dict(p_last=np.zeros((n, 3)), d_last=np.full(n, -np.inf), c_n=np.zeros((n, 3)), c_nq=np.zeros(n),
               c_h=np.zeros(n), c_list=np.zeros(n, np.int64), c_n2=np.zeros((n, 3)), c_nq2=np.full(n, np.nan),
               c_h2=np.zeros(n))
-    n_c, queries = _make_contacts(x, np.ones(n), v, b, np.full(n, skin), np.zeros((0, 4)), body.grid, True, reach,
-                                  max_push, 0.0, st["p_last"], st["d_last"], st["c_n"], st["c_nq"], st["c_h"],
-                                  st["c_list"], st["c_n2"], st["c_nq2"], st["c_h2"], 0, n, np.zeros((0, 3)),
-                                  np.zeros((0, 3)), np.zeros((0, 3)), sag, e, -np.inf)
+    n_c, queries = make_contacts(x, np.ones(n), v, b, np.full(n, skin), np.zeros((0, 4)), body.grid, True, reach,
+                                 max_push, 0.0, st["p_last"], st["d_last"], st["c_n"], st["c_nq"], st["c_h"],
+                                 st["c_list"], st["c_n2"], st["c_nq2"], st["c_h2"], 0, n, np.zeros((0, 3)),
+                                 np.zeros((0, 3)), np.zeros((0, 3)), sag, e, -np.inf)
     d, q, normal, _ = body.query(x, max_out=1.0, max_in=1.0)
     band = skin + reach
     touching = d - e < band

@@ -365,8 +365,7 @@ def test_scan_with_plane_edge_lists_equals_scan_girths(body, method):
     verts, tris = body
     ms = MeshSections(tris, len(verts))
     rng = np.random.default_rng(7)
-    scratch = (ms._cand, ms._visited, ms._cut, ms._pts, ms._loop_start, ms._loop_closed, ms._order, ms._hull,
-               ms._work)
+    scratch = tuple(ms.scratch)
     for trial in range(3):
         v = np.ascontiguousarray(verts + rng.normal(0.0, 3e-4, verts.shape) * (trial > 0))
         lo = rng.uniform(0.8, 1.1)

@@ -497,7 +497,7 @@ def test_friction_matches_reference_and_analytic():
 
 
 def test_make_contacts_with_spheres_matches_reference():
-    from vfit_engine.kernels.contact_make import _make_contacts
+    from vfit_engine.kernels.contact_make import make_contacts
 
     rng = np.random.default_rng(13)
     n = 40
@@ -512,9 +512,9 @@ def test_make_contacts_with_spheres_matches_reference():
     velocity = rng.normal(size=(2, 3))
     planes, u = naive_sim.sphere_contacts(x, w, v, b, skin, spheres, reach, max_push, velocity=velocity)
     st = _fresh_contact_state(p, n, 0, moving=True)
-    count, queries = _make_contacts(x, w, v, b, skin, spheres, _tiny_grid(), False, reach, max_push, 0.0,
-                                    st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2,
-                                    st.c_h2, 0, p, np.zeros((0, 3)), velocity, st.c_u, np.zeros(0), 0.0, -np.inf)
+    count, queries = make_contacts(x, w, v, b, skin, spheres, _tiny_grid(), False, reach, max_push, 0.0,
+                                   st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2,
+                                   st.c_h2, 0, p, np.zeros((0, 3)), velocity, st.c_u, np.zeros(0), 0.0, -np.inf)
     got = st.c_list[:count]
     assert got.tolist() == [q for q, _, _ in planes] and 10 < count < p - 10
     np.testing.assert_array_equal(st.c_u[got], u[got])  # the velocity of each contact's sphere
@@ -533,7 +533,7 @@ def test_body_velocity_at_a_contact_blends_its_triangle_corners():
     import trimesh
 
     from vfit_engine.collide.body_mesh import MeshCollider
-    from vfit_engine.kernels.contact_make import _make_contacts
+    from vfit_engine.kernels.contact_make import make_contacts
 
     mesh = trimesh.creation.icosphere(subdivisions=2, radius=0.1)
     col = MeshCollider(mesh.vertices, mesh.faces)
@@ -547,9 +547,9 @@ def test_body_velocity_at_a_contact_blends_its_triangle_corners():
     n = len(x)
     v, b = np.repeat(np.arange(n)[:, None], 3, axis=1).astype(np.int64), np.tile([1.0, 0.0, 0.0], (n, 1))
     st = _fresh_contact_state(n, n, 0, moving=True)
-    count, _ = _make_contacts(x, np.ones(n), v, b, np.full(n, 0.002), np.zeros((0, 4)), col.grid, True, 0.002, 0.01,
-                              0.0, st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2,
-                              st.c_h2, 0, n, vel, np.zeros((0, 3)), st.c_u, np.zeros(0), 0.0, -np.inf)
+    count, _ = make_contacts(x, np.ones(n), v, b, np.full(n, 0.002), np.zeros((0, 4)), col.grid, True, 0.002, 0.01,
+                             0.0, st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2,
+                             st.c_h2, 0, n, vel, np.zeros((0, 3)), st.c_u, np.zeros(0), 0.0, -np.inf)
     assert count == n
     _, q, _, _ = col.query(x, max_out=0.01, max_in=0.01)
     np.testing.assert_allclose(st.c_u, q @ a.T + c0, rtol=1e-9, atol=1e-12)

@@ -104,25 +104,25 @@ def render_frames(body_verts, body_tris, frames, garment_tris, values=None, *, s
     animation is never all in memory. Arguments as in :func:`write_gif`.
     """
     positions = _check_frames(frames)
-    scene = preview._check_scene(body_verts, body_tris, positions[0], garment_tris, cmap=cmap, size=size,
-                                 views=view, shading=shading, label=label, unit=unit)
+    scene = preview.check_scene(body_verts, body_tris, positions[0], garment_tris, cmap=cmap, size=size,
+                                views=view, shading=shading, label=label, unit=unit)
     texts = _check_labels(labels, len(positions))
     bodies = None
     if body_frames is not None:
         if body_verts is None or len(body_frames) != len(positions):
             raise InputError(f"body_frames must give the body (body_verts, body_tris) in each of the "
                              f"{len(positions)} frames")
-        bodies = [preview._check_verts(f"body_frames[{k}]", b) for k, b in enumerate(body_frames)]
+        bodies = [preview.check_verts(f"body_frames[{k}]", b) for k, b in enumerate(body_frames)]
         if any(b.shape != scene.meshes[0][0].shape for b in bodies):
             raise InputError("body_frames must all have the body's vertex count")
-    rgb, bar, lo, hi = preview._garment_colours(values, positions[0].shape[0], cmap, vmin, vmax, label,
-                                                unit, n_frames=len(positions))
+    rgb, bar, lo, hi = preview.garment_colours(values, positions[0].shape[0], cmap, vmin, vmax, label,
+                                               unit, n_frames=len(positions))
     lay = preview_text.layout(scene.width, scene.height, len(scene.rotations), title, bar, footer=True)
-    framing = preview._framing([v for v, _ in scene.meshes[:-1]] + (bodies or []) + positions, scene.rotations,
-                               zoom, lay["panel_w"], lay["panel_h"])
+    framing = preview.fit_framing([v for v, _ in scene.meshes[:-1]] + (bodies or []) + positions,
+                                  scene.rotations, zoom, lay["panel_w"], lay["panel_h"])
     canvas = np.empty((scene.height, scene.width, 3))
     canvas[:] = preview.BACKGROUND_RGB
-    base = preview._decorate(canvas, lay, scene.captions, title, bar, cmap, lo, hi)
+    base = preview.decorate(canvas, lay, scene.captions, title, bar, cmap, lo, hi)
     painter = _Painter(scene, framing, lay, base, shading, moving=bodies is not None)
     tris = scene.meshes[-1][1]
 
@@ -160,13 +160,13 @@ class _Painter:
         self.lay, self.base, self.shading, self.framing = lay, base, shading, framing
         ss, ph, pw = _SUPERSAMPLE, lay["panel_h"], lay["panel_w"]
         self.scene, self.moving = scene, moving
-        body = [] if moving else [(v, t, c, preview._normals(v, t, shading))
+        body = [] if moving else [(v, t, c, preview.shading_normals(v, t, shading))
                                   for (v, t), c in zip(scene.meshes, scene.colours)]
         self.body = []  # per view: (image, depth) of the body alone (nothing when it moves)
         for view in range(len(scene.rotations)):
             image, depth = np.empty((ph * ss, pw * ss, 3)), np.full((ph * ss, pw * ss), -np.inf)
             image[:] = preview.BACKGROUND_RGB
-            preview._draw_meshes(body, framing, view, ss, shading, image, depth)
+            preview.draw_meshes(body, framing, view, ss, shading, image, depth)
             self.body.append((image, depth))
         self.work = [(image.copy(), depth.copy()) for image, depth in self.body]
         self.dirty = [None] * len(self.body)  # sample box the last frame's garment drew over
@@ -177,10 +177,11 @@ class _Painter:
         ``body_verts`` when it moves)."""
         lay, ss = self.lay, _SUPERSAMPLE
         out = self.base.copy()
-        garment = [(verts, tris, rgb, preview._normals(verts, tris, self.shading))]
+        garment = [(verts, tris, rgb, preview.shading_normals(verts, tris, self.shading))]
         if self.moving:
             (_, btris), colours = self.scene.meshes[0], self.scene.colours[0]
-            garment.insert(0, (body_verts, btris, colours, preview._normals(body_verts, btris, self.shading)))
+            garment.insert(0, (body_verts, btris, colours,
+                               preview.shading_normals(body_verts, btris, self.shading)))
         for view, x0 in enumerate(lay["panel_x"]):
             image, depth = self.work[view]
             if self.moving:  # everything is drawn anew
@@ -190,9 +191,10 @@ class _Painter:
                 r0, r1, c0, c1 = self.dirty[view]
                 image[r0:r1, c0:c1] = self.body[view][0][r0:r1, c0:c1]
                 depth[r0:r1, c0:c1] = self.body[view][1][r0:r1, c0:c1]
-            self.dirty[view] = preview._draw_meshes(garment, self.framing, view, ss, self.shading, image, depth)
-            preview._resolve(image, depth, ss, self.panel)
-            out[lay["top"]:lay["top"] + lay["panel_h"], x0:x0 + lay["panel_w"]] = preview._to_uint8(self.panel)
+            self.dirty[view] = preview.draw_meshes(garment, self.framing, view, ss, self.shading, image,
+                                                   depth)
+            preview.resolve_samples(image, depth, ss, self.panel)
+            out[lay["top"]:lay["top"] + lay["panel_h"], x0:x0 + lay["panel_w"]] = preview.to_uint8(self.panel)
         _footer(out, lay, caption, progress)
         return out
 
@@ -253,7 +255,7 @@ def _check_frames(frames):
         raise InputError("frames must be a non-empty sequence of (p, 3) garment positions")
     if count > MAX_FRAMES:
         raise InputError(f"at most {MAX_FRAMES} frames in one GIF, got {count}: pass every k-th frame")
-    positions = [preview._check_verts(f"frames[{k}]", f) for k, f in enumerate(frames)]
+    positions = [preview.check_verts(f"frames[{k}]", f) for k, f in enumerate(frames)]
     for k, pos in enumerate(positions):
         if pos.shape[0] != positions[0].shape[0]:
             raise InputError(f"frames[{k}] has {pos.shape[0]} vertices, frames[0] has {positions[0].shape[0]}")

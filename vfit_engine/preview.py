@@ -12,7 +12,9 @@ alike) plus ambient light; triangles are lit on both sides because garments are 
 Drawing is a plain z-buffer in float64 (:mod:`vfit_engine.kernels.raster`) with 3 x 3
 supersampling: the garment hides the body only where it is nearer to the viewer. Text, layout
 and the colour bar's frame are in :mod:`vfit_engine.preview_text`; :mod:`vfit_engine.animation`
-draws frames of a drape with the same pieces.
+draws frames of a drape with the same pieces, this module's drawing API: :func:`check_scene`,
+:func:`check_verts`, :func:`garment_colours` (the checks), :func:`fit_framing`, :func:`shading_normals`,
+:func:`draw_meshes`, :func:`resolve_samples`, :func:`to_uint8` and :func:`decorate` (the drawing).
 
 Importing this module imports numba (the rasterizer's kernels) and Pillow; the CLI imports it inside its
 commands, so ``vfit --help`` does not.
@@ -157,13 +159,14 @@ def render_image(body_verts, body_tris, garment_verts, garment_tris, values=None
 
     Arguments as in :func:`render_views`.
     """
-    scene = _check_scene(body_verts, body_tris, garment_verts, garment_tris, cmap=cmap, size=size,
-                         views=views, shading=shading, label=label, unit=unit)
+    scene = check_scene(body_verts, body_tris, garment_verts, garment_tris, cmap=cmap, size=size,
+                        views=views, shading=shading, label=label, unit=unit)
     gv = scene.meshes[-1][0]
-    rgb, bar, lo, hi = _garment_colours(values, gv.shape[0], cmap, vmin, vmax, label, unit)
+    rgb, bar, lo, hi = garment_colours(values, gv.shape[0], cmap, vmin, vmax, label, unit)
     lay = text.layout(scene.width, scene.height, len(scene.rotations), title, bar)
-    meshes = [(v, t, c, _normals(v, t, shading)) for (v, t), c in zip(scene.meshes, [*scene.colours, rgb])]
-    framing = _framing([v for v, _ in scene.meshes], scene.rotations, zoom, lay["panel_w"], lay["panel_h"])
+    meshes = [(v, t, c, shading_normals(v, t, shading))
+              for (v, t), c in zip(scene.meshes, [*scene.colours, rgb])]
+    framing = fit_framing([v for v, _ in scene.meshes], scene.rotations, zoom, lay["panel_w"], lay["panel_h"])
     canvas = np.empty((scene.height, scene.width, 3))
     canvas[:] = BACKGROUND_RGB
     ss = _SUPERSAMPLE
@@ -172,10 +175,10 @@ def render_image(body_verts, body_tris, garment_verts, garment_tris, values=None
     panel = np.empty((lay["panel_h"], lay["panel_w"], 3))
     for view, x0 in enumerate(lay["panel_x"]):
         depth[:] = -np.inf
-        _draw_meshes(meshes, framing, view, ss, shading, image, depth)
-        _resolve(image, depth, ss, panel)
+        draw_meshes(meshes, framing, view, ss, shading, image, depth)
+        resolve_samples(image, depth, ss, panel)
         canvas[lay["top"]:lay["top"] + lay["panel_h"], x0:x0 + lay["panel_w"]] = panel
-    return _decorate(canvas, lay, scene.captions, title, bar, cmap, lo, hi)
+    return decorate(canvas, lay, scene.captions, title, bar, cmap, lo, hi)
 
 
 def colour_map(values, cmap="strain", vmin=None, vmax=None):
@@ -242,7 +245,8 @@ def _check_size(size):
     return width, height
 
 
-def _check_verts(name, verts):
+def check_verts(name, verts):
+    """(n, 3) float64 contiguous vertices in metres, or an InputError naming ``name``."""
     try:
         v = np.ascontiguousarray(verts, dtype=np.float64)
     except (TypeError, ValueError):
@@ -269,7 +273,7 @@ def _check_tris(name, tris, n_verts):
     return t
 
 
-class _Scene(NamedTuple):
+class Scene(NamedTuple):
     """What the checks hand on: picture size, meshes and views, all converted once."""
 
     width: int
@@ -280,8 +284,8 @@ class _Scene(NamedTuple):
     captions: list
 
 
-def _check_scene(body_verts, body_tris, garment_verts, garment_tris, *, cmap, size, views, shading, label,
-                 unit):
+def check_scene(body_verts, body_tris, garment_verts, garment_tris, *, cmap, size, views, shading, label,
+                unit):
     """Check and convert everything but the values (see :func:`render_views` for the arguments)."""
     _colour_map_entry(cmap)  # a misspelt map is an error even when values is None
     width, height = _check_size(size)
@@ -292,10 +296,10 @@ def _check_scene(body_verts, body_tris, garment_verts, garment_tris, *, cmap, si
     if not isinstance(unit, str) or not isinstance(label, str):
         raise InputError("label and unit must be strings")
     skin = [np.tile(np.asarray(SKIN_RGB), (v.shape[0], 1)) for v, _ in meshes[:-1]]
-    return _Scene(width, height, meshes, skin, rotations, captions)
+    return Scene(width, height, meshes, skin, rotations, captions)
 
 
-def _garment_colours(values, n_verts, cmap, vmin, vmax, label, unit, n_frames=None):
+def garment_colours(values, n_verts, cmap, vmin, vmax, label, unit, n_frames=None):
     """(rgb (n_verts, 3) or (n_frames, n_verts, 3), bar texts or None, lo, hi) of the garment.
 
     ``values``: None (plain cloth colour, no bar), (n_verts,) or, for an animation of
@@ -315,9 +319,9 @@ def _check_meshes(body_verts, body_tris, garment_verts, garment_tris):
     if (body_verts is None) != (body_tris is None):
         raise InputError("give both body_verts and body_tris, or neither")
     if body_verts is not None:
-        bv = _check_verts("body_verts", body_verts)
+        bv = check_verts("body_verts", body_verts)
         meshes.append((bv, _check_tris("body_tris", body_tris, bv.shape[0])))
-    gv = _check_verts("garment_verts", garment_verts)
+    gv = check_verts("garment_verts", garment_verts)
     gt = _check_tris("garment_tris", garment_tris, gv.shape[0])
     if gt.shape[0] == 0:
         raise InputError("the garment has no triangles")
@@ -379,7 +383,7 @@ def _face_normals(verts, tris):
     return n / np.where(norm > 0, norm, 1.0)
 
 
-class _Framing(NamedTuple):
+class Framing(NamedTuple):
     """Orthographic cameras: ``x_pix = (x_view - centres[k]) * scale + panel_w / 2`` and
     ``y_pix = (cy - y) * scale + panel_h / 2``, in pixels of the final picture."""
 
@@ -391,7 +395,7 @@ class _Framing(NamedTuple):
     panel_h: int
 
 
-def _framing(verts_list, rotations, zoom, panel_w, panel_h):
+def fit_framing(verts_list, rotations, zoom, panel_w, panel_h):
     """The cameras that fit every vertex of ``verts_list`` (within the height range) in every panel.
 
     Each view is centred on the meshes' horizontal extent and the scale is the largest at which
@@ -407,17 +411,17 @@ def _framing(verts_list, rotations, zoom, panel_w, panel_h):
         centres.append(0.5 * (x.min() + x.max()))
         if x.max() > x.min():
             scale = min(scale, panel_w * (1 - 2 * _PAD) / (x.max() - x.min()))
-    return _Framing(scale, centres, 0.5 * (y0 + y1), rotations, panel_w, panel_h)
+    return Framing(scale, centres, 0.5 * (y0 + y1), rotations, panel_w, panel_h)
 
 
-def _normals(verts, tris, shading):
+def shading_normals(verts, tris, shading):
     """Vertex normals (gouraud) or face normals (flat) of a mesh."""
     if shading == "gouraud":
         return vertex_normals(verts, tris)
     return _face_normals(verts, tris)
 
 
-def _draw_meshes(meshes, framing, view, ss, shading, image, depth):
+def draw_meshes(meshes, framing, view, ss, shading, image, depth):
     """Rasterize meshes [(verts, tris, rgb, normals)] as seen in ``view`` into the sample buffers.
 
     ``image`` (panel_h ss, panel_w ss, 3) and ``depth`` (panel_h ss, panel_w ss) are drawn over,
@@ -445,28 +449,29 @@ def _draw_meshes(meshes, framing, view, ss, shading, image, depth):
     return tuple(box)
 
 
-def _resolve(image, depth, ss, panel_out):
+def resolve_samples(image, depth, ss, panel_out):
     """Average the samples into the (panel_h, panel_w, 3) panel; empty samples are background."""
     downsample(image, depth, np.asarray(BACKGROUND_RGB, dtype=np.float64), ss, panel_out)
 
 
-def _to_uint8(rgb):
+def to_uint8(rgb):
+    """sRGB floats in [0, 1] (clipped) as uint8 0-255, rounded to nearest."""
     return (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
-def _decorate(canvas, lay, captions, title, bar, cmap, lo, hi):
+def decorate(canvas, lay, captions, title, bar, cmap, lo, hi):
     """The (h, w, 3) uint8 picture: the float canvas with the bar's gradient, texts and the bar's frame."""
     if bar is not None:
         x0, y0, x1, y1 = lay["bar_box"]
         rows = hi - (np.arange(y1 - y0) + 0.5) / (y1 - y0) * (hi - lo)
         canvas[y0:y1, x0:x1] = colour_map(rows, cmap, lo, hi)[:, None, :]
-    img = Image.fromarray(_to_uint8(canvas), "RGB")
+    img = Image.fromarray(to_uint8(canvas), "RGB")
     fs = lay["font_px"]
     if title:
         text.put_text(img, title, lay["title_px"], canvas.shape[1] // 2, lay["margin"], "centre")
     for x0, caption in zip(lay["panel_x"], captions):
         text.put_text(img, caption, fs, x0 + lay["panel_w"] // 2, lay["caption_y"], "centre")
     if bar is not None:
-        ends = _to_uint8(colour_map(np.array([lo, hi]), cmap, lo, hi))
+        ends = to_uint8(colour_map(np.array([lo, hi]), cmap, lo, hi))
         text.draw_bar_frame(img, lay["bar_box"], bar, fs, lo, hi, ends)
     return np.array(img)

@@ -11,6 +11,8 @@ seed system's profile-curve length and ``"polyline"`` the loop's own length
 This module imports numba (through the kernels) and is meant for measurement
 code only, never for the CLI's ``--help`` path.
 """
+from typing import NamedTuple
+
 import numpy as np
 
 from vfit_engine.errors import InputError
@@ -47,6 +49,41 @@ def rotation_to_y(n):
     v = np.cross(n, y)
     vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
     return np.eye(3) + vx + vx @ vx / (1.0 + c)
+
+
+class SectionScratch(NamedTuple):
+    """The section kernels' scratch buffers for a mesh of E edges, in the order the kernels take them
+    (:mod:`vfit_engine.kernels.section`, :mod:`vfit_engine.kernels.girth_grad`): a kernel that needs the first
+    six takes ``*scratch[:6]``, one that needs all nine ``*scratch``. Their contents between calls mean nothing.
+    """
+
+    #: (E,) int64: candidate edges (those a plane or band cuts).
+    cand: np.ndarray
+    #: (E,) int64: per-edge visit marks of the loop walk.
+    visited: np.ndarray
+    #: (E,) int64: the edges cut at one plane.
+    cut: np.ndarray
+    #: (E, 2) float64, m: the loops' (x, z) points.
+    pts: np.ndarray
+    #: (E + 1,) int64: where each loop starts in ``pts``.
+    loop_start: np.ndarray
+    #: (E,) int64: 1 where the loop is closed.
+    loop_closed: np.ndarray
+    #: (E,) int64: the hull's sort order.
+    order: np.ndarray
+    #: (2 E + 1,) int64: the hull's points.
+    hull: np.ndarray
+    #: (SPLINE_WORK_ROWS, E + 1) float64: the spline girth's work rows.
+    work: np.ndarray
+
+    @classmethod
+    def for_edges(cls, n_edges):
+        """Buffers for a mesh of ``n_edges`` edges."""
+        return cls(np.zeros(n_edges, dtype=np.int64), np.zeros(n_edges, dtype=np.int64),
+                   np.zeros(n_edges, dtype=np.int64), np.zeros((n_edges, 2), dtype=np.float64),
+                   np.zeros(n_edges + 1, dtype=np.int64), np.zeros(n_edges, dtype=np.int64),
+                   np.zeros(n_edges, dtype=np.int64), np.zeros(2 * n_edges + 1, dtype=np.int64),
+                   np.zeros((_kg.SPLINE_WORK_ROWS, n_edges + 1), dtype=np.float64))
 
 
 class MeshSections:
@@ -97,16 +134,8 @@ class MeshSections:
         self.tri_edges = tri_edges
         #: (E, 2) int64 edge -> triangles table, -1 on a boundary.
         self.edge_tris = edge_tris
-        n_edges = edges.shape[0]
-        self._cand = np.zeros(n_edges, dtype=np.int64)
-        self._visited = np.zeros(n_edges, dtype=np.int64)
-        self._cut = np.zeros(n_edges, dtype=np.int64)
-        self._pts = np.zeros((n_edges, 2), dtype=np.float64)
-        self._loop_start = np.zeros(n_edges + 1, dtype=np.int64)
-        self._loop_closed = np.zeros(n_edges, dtype=np.int64)
-        self._order = np.zeros(n_edges, dtype=np.int64)
-        self._hull = np.zeros(2 * n_edges + 1, dtype=np.int64)
-        self._work = np.zeros((_kg.SPLINE_WORK_ROWS, n_edges + 1), dtype=np.float64)
+        #: The kernels' scratch buffers (:class:`SectionScratch`), for kernels called on this topology.
+        self.scratch = SectionScratch.for_edges(edges.shape[0])
         self._plane_edges = None  # scan's per-plane edge lists, made at the first scan
 
     @property
@@ -160,13 +189,13 @@ class MeshSections:
         """
         verts = self._verts(verts)
         y = self._height(y)
+        sc = self.scratch
         n_pts, n_loops = _ks.section_at(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, y,
-                                        self._cand, self._visited, self._cut, self._pts,
-                                        self._loop_start, self._loop_closed)
-        starts = self._loop_start[:n_loops + 1]
-        loops = [self._pts[starts[i]:starts[i + 1]].copy() for i in range(n_loops)]
+                                        *sc[:6])
+        starts = sc.loop_start[:n_loops + 1]
+        loops = [sc.pts[starts[i]:starts[i + 1]].copy() for i in range(n_loops)]
         if return_closed:
-            return loops, [bool(c) for c in self._loop_closed[:n_loops]]
+            return loops, [bool(c) for c in sc.loop_closed[:n_loops]]
         return loops
 
     def apart(self, verts, ys):
@@ -177,8 +206,8 @@ class MeshSections:
         if verts.dtype != np.float64 or not verts.flags.c_contiguous or verts.shape != (self.n_verts, 3):
             verts = self._verts(verts)
         out = np.empty(ys.size, dtype=np.int64)
-        _ks.apart_planes(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, ys, self._cand,
-                         self._visited, self._cut, self._pts, self._loop_start, self._loop_closed, out)
+        _ks.apart_planes(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, ys, *self.scratch[:6],
+                         out)
         return out.astype(bool)
 
     def girth(self, verts, y, method="hull", x0=0.0):
@@ -223,9 +252,8 @@ class MeshSections:
             self._plane_edges = np.zeros(PLANE_EDGES_PER_EDGE * self.edge_count, dtype=np.int64)
         out = np.empty(ys.size, dtype=np.float64)
         _ks.scan_girths_sorted(verts, self.tris, self.edges, self.tri_edges, self.edge_tris, ys, code,
-                               SPLINE_SAMPLES, x0, self._cand, self._visited, self._cut, self._pts,
-                               self._loop_start, self._loop_closed, self._order, self._hull, self._work,
-                               np.empty(ys.size + 1, dtype=np.int64), self._plane_edges, out)
+                               SPLINE_SAMPLES, x0, *self.scratch, np.empty(ys.size + 1, dtype=np.int64),
+                               self._plane_edges, out)
         return out
 
     def scan(self, verts, y_lo, y_hi, step=0.001, method="hull", x0=0.0):

@@ -45,7 +45,7 @@ from scipy.spatial.transform import Rotation
 
 from vfit_engine.body.gait import walk_motion
 from vfit_engine.body.model import N_BODY
-from vfit_engine.body.pose import body_joints, bone_rotations, file_axes, rig_order, skinning_for
+from vfit_engine.body.pose import body_joints, bone_rotations, file_axes, joint_naming, rig_order, skinning_for
 from vfit_engine.body.segment import bone_positions
 from vfit_engine.body.skinning import Skinning
 from vfit_engine.collide.body_mesh import MeshCollider
@@ -66,8 +66,6 @@ for _side, _s in (("Left", "L"), ("Right", "R")):
                        f"{_side}Arm": f"upperarm01.{_s}", f"{_side}ForeArm": f"lowerarm01.{_s}",
                        f"{_side}Hand": f"wrist.{_s}"})
 del _side, _s
-#: A file naming at least this many of the rig's bones is in the rig's own names (MakeHuman's poses).
-RIG_NAMES_MIN = 10
 
 
 @dataclass
@@ -85,6 +83,9 @@ class Clip:
         The walk: frame ``f`` is frame 0 again; otherwise the last frame holds.
     description : dict
         What the clip is (for the report).
+    frames : int
+        Frames of the whole clip when only its first ``f`` were posed (``load_clip(until=...)``: later times
+        hold frame ``f - 1``); 0: ``f``.
     """
 
     rotations: np.ndarray
@@ -92,11 +93,12 @@ class Clip:
     frame_time: float
     looping: bool
     description: dict
+    frames: int = 0
 
     @property
     def duration(self):
         """Seconds the clip plays before it loops or holds."""
-        return (len(self.rotations) - (0 if self.looping else 1)) * self.frame_time
+        return ((self.frames or len(self.rotations)) - (0 if self.looping else 1)) * self.frame_time
 
     def sample(self, t, blend=1.0):
         """((b, 3, 3) local rotations, (3,) m root translation) at ``t`` s, turned ``blend`` (0..1) of the way
@@ -129,7 +131,7 @@ class Clip:
         return self.root[-1] - self.root[0] + step
 
 
-def load_clip(model, source, speed=1.3, fps=30.0, travel=False, joint_map=None):
+def load_clip(model, source, speed=1.3, fps=30.0, travel=False, joint_map=None, until=None):
     """The clip ``source``: ``"walk"`` or a BVH file (module docstring).
 
     Parameters
@@ -145,6 +147,9 @@ def load_clip(model, source, speed=1.3, fps=30.0, travel=False, joint_map=None):
         Keep the root's translation.
     joint_map : str, dict or None
         A JSON file or dict of file joint -> rig bone; None: the rig's names, else :data:`CMU_JOINTS`.
+    until : float or None, s
+        The last time the clip will be sampled at: a file's frames after it are not posed, so a long capture
+        costs what the animation plays (:attr:`Clip.frames` keeps its length). None: every frame.
 
     Raises
     ------
@@ -167,16 +172,18 @@ def load_clip(model, source, speed=1.3, fps=30.0, travel=False, joint_map=None):
     mapping, how = _joint_map(model, motion, source, joint_map)
     renamed = _renamed(motion, mapping)
     axes = file_axes(motion)
-    rot = np.stack([_rig_rotations(model, renamed, k, axes) for k in range(len(motion.frames))])
+    n = len(motion.frames)
+    posed = n if until is None else min(n, int(max(until, 0.0) / motion.frame_time) + 2)  # sample's k0 and k1
+    rot = np.stack([_rig_rotations(model, renamed, k, axes) for k in range(posed)])
     if how != "rig names":
         rot = _retarget(model, renamed, axes, rot)
     root = np.zeros((len(rot), 3))
     if travel:
-        root = _root_travel(model, motion, axes)
+        root = _root_travel(model, motion, axes, posed)
     named = sorted(set(model.bone_names) & set(renamed.names))
     return Clip(rot, root, motion.frame_time, False,
-                dict(motion=os.path.abspath(source), frames=len(rot), fps=1.0 / motion.frame_time, joints=how,
-                     bones_posed=len(named)))
+                dict(motion=os.path.abspath(source), frames=n, fps=1.0 / motion.frame_time, joints=how,
+                     bones_posed=len(named)), frames=n)
 
 
 def _rig_rotations(model, motion, frame, axes):
@@ -201,13 +208,9 @@ def _joint_map(model, motion, source, joint_map):
         if bad:
             raise InputError(f"joint map: {bad[0]!r} is not a bone of the default rig (e.g. upperleg01.L)")
         return dict(joint_map), "joint map"
-    if len(rig & set(motion.names)) >= RIG_NAMES_MIN:
-        return {}, "rig names"
-    found = set(CMU_JOINTS) & set(motion.names)
-    if len(found) >= RIG_NAMES_MIN:
-        return dict(CMU_JOINTS), "CMU names"
-    raise InputError(f"{source}: its joints ({', '.join(motion.names[:4])}, ...) are neither the default rig's "
-                     "bones nor CMU's skeleton: give --joint-map FILE.json ({\"file joint\": \"rig bone\"})")
+    how = joint_naming(model, motion, source, {"CMU names": CMU_JOINTS},
+                       fix="give --joint-map FILE.json ({\"file joint\": \"rig bone\"})")
+    return ({} if how == "rig names" else dict(CMU_JOINTS)), how
 
 
 def _renamed(motion, mapping):
@@ -273,13 +276,14 @@ def _turn(a, b):
     return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_matrix()
 
 
-def _root_travel(model, motion, axes):
-    """(f, 3) m: the file root's translation from its first frame, scaled from the file's legs to the body's."""
+def _root_travel(model, motion, axes, count):
+    """(count, 3) m: the file root's translation from its first frame in its first ``count`` frames, scaled from
+    the file's legs to the body's."""
     rest = motion.rest_positions() @ axes.T
     file_height = float(rest[:, 1].max() - rest[:, 1].min())
     joints = body_joints(model, model.default_verts("female"))
     body_height = float(joints[:, 1].max() - joints[:, 1].min())
-    trans = np.stack([motion.local_translations(k)[0] for k in range(len(motion.frames))]) @ axes.T
+    trans = np.stack([motion.local_translations(k)[0] for k in range(count)]) @ axes.T
     return (trans - trans[0]) * (body_height / max(file_height, 1e-12))
 
 

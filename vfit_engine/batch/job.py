@@ -32,12 +32,15 @@ from pathlib import Path
 import yaml
 
 from vfit_engine.body.gender import parse_gender
+from vfit_engine.body.measure import DEFINITIONS
 from vfit_engine.drape.colliders import COLLIDERS
+from vfit_engine.drape.setup import REST_MODES
 from vfit_engine.errors import InputError, VfitError
 from vfit_engine.garment.mhclo import parse_mhclo
 from vfit_engine.garment.transfer import METHODS
 from vfit_engine.sim.materials import resolve_material
 from vfit_engine.sizes import parse_sizes
+from vfit_engine.units import LENGTH_UNITS
 
 #: Body girths a body spec may give, cm (``vfit morph``'s options; tests hold the two lists equal).
 GIRTHS = ("bust", "underbust", "waist", "hips", "neck", "upper_arm", "thigh", "calf")
@@ -50,8 +53,6 @@ NAME_SYNONYMS = ("id", "customer")
 GARMENT_KEYS = ("path", "material", "sizes", "units")
 DRAPE_KEYS = ("frames", "collider", "rest", "transfer", "pin")
 JOB_KEYS = ("garments", "bodies", "drape")
-UNITS = ("auto", "m", "dm", "cm", "mm")
-DEFINITIONS = ("iso", "makehuman", "spline")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -220,8 +221,8 @@ def _garments(entries, base, path):
             what = "is a folder, not a garment file" if file.is_dir() else "garment file not found"
             raise InputError(f"{where}: {what}: {file}")
         units = str(e.get("units", "auto"))
-        if units not in UNITS:
-            raise InputError(f"{where}: unknown units {units!r}; use {', '.join(UNITS)}")
+        if units != "auto" and units not in LENGTH_UNITS:
+            raise InputError(f"{where}: unknown units {units!r}; use {', '.join(('auto', *LENGTH_UNITS))}")
         sizes = e.get("sizes")
         if sizes is not None:
             text = ",".join(sizes) if isinstance(sizes, list) else str(sizes)
@@ -354,7 +355,7 @@ def _drape_options(opts, path):
         raise InputError(f"{where}: give a mapping of drape options ({', '.join(DRAPE_KEYS)})")
     _known(opts, DRAPE_KEYS, where)
     out = dict(opts)
-    choices = dict(collider=COLLIDERS, rest=("garment", "graded"), transfer=METHODS, pin=("auto", "none"))
+    choices = dict(collider=COLLIDERS, rest=REST_MODES, transfer=METHODS, pin=("auto", "none"))
     for key, allowed in choices.items():
         if key in out and out[key] not in allowed:
             raise InputError(f"{where}: {key} {out[key]!r}; use {', '.join(allowed)}")

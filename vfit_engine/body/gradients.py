@@ -46,9 +46,8 @@ def girth_gradient_dy(sections, verts, h, eps, x0=0.0):
     s = sections
     rows = 2 * s.edge_count  # at most 2 per cut edge; np.empty touches only the pages written
     idx, grad, g = np.empty(rows, dtype=np.int64), np.empty((rows, 3)), np.empty(2)
-    n = kernel(verts, s.tris, s.edges, s.tri_edges, s.edge_tris, float(h), float(x0), float(eps), s._cand,
-               s._visited, s._cut, s._pts, s._loop_start, s._loop_closed, s._order, s._hull, s._work, idx,
-               grad, g)
+    n = kernel(verts, s.tris, s.edges, s.tri_edges, s.edge_tris, float(h), float(x0), float(eps), *s.scratch,
+               idx, grad, g)
     if n < 0:  # no loop, or several, across x0: the reference's tie-breaks (the kernel's docstring)
         return (*girth_gradient_reference(sections, verts, h, x0), (g[0], g[1]))
     return idx[:n].copy(), grad[:n].copy(), (g[0], g[1])
@@ -89,8 +88,9 @@ def girth_gradient_reference(sections, verts, h, x0=0.0):
 
     # match every hull point to the mesh edge it was cut from
 
-    n_cut = select_band_edges(verts, sections.edges, h, h, sections._cand)  # the edges y = h cuts
-    cut = sections._cand[:n_cut]
+    cand = sections.scratch.cand
+    n_cut = select_band_edges(verts, sections.edges, h, h, cand)  # the edges y = h cuts
+    cut = cand[:n_cut]
     a, b = sections.edges[cut, 0], sections.edges[cut, 1]
     s = (h - verts[a, 1]) / (verts[b, 1] - verts[a, 1])
     px = verts[a, 0] + s * (verts[b, 0] - verts[a, 0])

@@ -178,9 +178,12 @@ class BodyModel:
     _group_ranges: np.ndarray
     bone_names: tuple
     skin: tuple  # (bone (s,), vertex (s,), weight (s,))
-    _target_id: dict = field(default_factory=dict, repr=False)
+    _target_id: dict = field(init=False, repr=False)  # target name -> its row, made from target_names
     _dense_cache: dict = field(default_factory=dict, repr=False)
     _tail_cache: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        self._target_id = {n: i for i, n in enumerate(self.target_names)}
 
     @classmethod
     def load(cls, path: Path | None = None) -> "BodyModel":
@@ -204,7 +207,6 @@ class BodyModel:
                 skin=(d["skin_bone"].astype(np.int64), d["skin_vertex"].astype(np.int64),
                       d["skin_weight"].astype(np.float64)),
             )
-        model._target_id = {n: i for i, n in enumerate(model.target_names)}
         return model
 
     # ------------------------------------------------------------------ topology

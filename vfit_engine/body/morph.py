@@ -56,7 +56,7 @@ from .morph_planes import SLACK_UNIT, GirthRows, Problem, add_planes, outer_loop
 from .morph_reach import OutOfTime, ReachSearch  # noqa: F401  (OutOfTime: re-exported)
 from .morph_result import MorphResult, Plan
 from .morph_settings import (  # noqa: F401  (tests and scripts read them from morph)
-    _MASS_UNIT, _MM, B_MAX, B_MIN, EACH_PLANE_MISS, EARLY_EXIT, POINT_MARGIN, RANGE_SEARCH_UNTIL, REACH_PULL,
+    MASS_UNIT, MM, B_MAX, B_MIN, EACH_PLANE_MISS, EARLY_EXIT, POINT_MARGIN, RANGE_SEARCH_UNTIL, REACH_PULL,
     REACH_SOFT, REACH_WEIGHT, REG_PRIMARY, REG_SECONDARY, SEEN_PLANES, SOFT_TOL, SOFT_WEIGHT, TOLERANCE_M,
     TOLERANCE_MASS, UNDERBUST_SD,
 )
@@ -233,7 +233,7 @@ class Morpher(ReachSearch):
 
         def semantic(p, planes=None):
             v = self._body(self.macro(g, p[0], p[1]), zero)
-            return np.array([(stature(v) - height) / _MM, (m.mass(v) / mass - 1.0) / _MASS_UNIT]), None
+            return np.array([(stature(v) - height) / MM, (m.mass(v) / mass - 1.0) / MASS_UNIT]), None
 
         p, _ = _gauss_newton(semantic, np.array([0.5, 0.0]), np.array([0.0, B_MIN]), np.array([1.0, B_MAX]),
                              np.zeros(2), None)
@@ -288,7 +288,7 @@ class Morpher(ReachSearch):
             if planes is None:
                 held[0] = m.bust_points(v)
             r, plane_rows, grads, signs = rows.rows(meas, planes, slack)
-            r = np.concatenate([r, [(meas.mass_kg / mass - 1.0) / _MASS_UNIT * w_mass],
+            r = np.concatenate([r, [(meas.mass_kg / mass - 1.0) / MASS_UNIT * w_mass],
                                 self._point_gap(v, held[0])[0], plane_rows])
             if not jac:
                 return r, meas
@@ -358,7 +358,7 @@ class Morpher(ReachSearch):
         for side, (idx, a) in enumerate(zip(self.measurer.breasts, points)):
             z = np.where(idx == a, -np.inf, v[idx, 2])
             rivals[side] = idx[np.argmax(z)]
-            gaps[side] = max(0.0, (z.max() - v[a, 2] + POINT_MARGIN) / _MM)
+            gaps[side] = max(0.0, (z.max() - v[a, 2] + POINT_MARGIN) / MM)
         return gaps, np.asarray(points), rivals
 
     def _result(self, g, x, meas, plan, targets, weight_kg, iterations) -> MorphResult:
@@ -402,13 +402,13 @@ class Morpher(ReachSearch):
         jdef = "iso" if definition == "spline" else definition
         for row, k, fraction in grads:
             idx, grad = self.measurer.gradient(v, k, jdef, fraction)
-            scale = wres[keys.index(k)] / _MM
+            scale = wres[keys.index(k)] / MM
             row = row if row < len(keys) else row - len(keys) + base
             J[row, :n_ch] = np.einsum("jkc,kc->j", ch.incr3[:, idx], grad) * scale
             J[row, n_ch:2 * n_ch] = np.einsum("jkc,kc->j", ch.decr3[:, idx], grad) * scale
             J[row, -2:] = np.einsum("jkc,kc->j", moves3[:, idx], grad) * scale
         grad = self.measurer.mass_gradient(v).ravel()
-        scale = 1.0 / mass / _MASS_UNIT * w_mass
+        scale = 1.0 / mass / MASS_UNIT * w_mass
         col = np.empty(2 * n_ch)
         project(ch.updown, grad, col)
         J[len(keys), :2 * n_ch] = col * scale
@@ -419,9 +419,9 @@ class Morpher(ReachSearch):
         for side, (gap, a, o) in enumerate(zip(*self._point_gap(v, self.measurer.held_points))):
             if gap > 0:  # an active hinge: d(z_o - z_a)
                 row = len(keys) + 1 + side
-                J[row, :n_ch] = (ch.incr3[:, o, 2] - ch.incr3[:, a, 2]) / _MM
-                J[row, n_ch:2 * n_ch] = (ch.decr3[:, o, 2] - ch.decr3[:, a, 2]) / _MM
-                J[row, -2:] = (moves3[:, o, 2] - moves3[:, a, 2]) / _MM
+                J[row, :n_ch] = (ch.incr3[:, o, 2] - ch.incr3[:, a, 2]) / MM
+                J[row, n_ch:2 * n_ch] = (ch.decr3[:, o, 2] - ch.decr3[:, a, 2]) / MM
+                J[row, -2:] = (moves3[:, o, 2] - moves3[:, a, 2]) / MM
         return J
 
 

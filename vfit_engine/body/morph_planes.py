@@ -28,7 +28,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .gauss_newton import gauss_newton
-from .morph_settings import _MM, EARLY_EXIT, SEEN_PLANES, SOFT_TOL, TOLERANCE_M
+from .morph_settings import MM, EARLY_EXIT, SEEN_PLANES, SOFT_TOL, TOLERANCE_M
 
 #: +1 where the girth is the smallest over its band, -1 where the largest (``measure.py``'s definitions)
 SIGN = {"underbust": 1.0, "waist": 1.0, "hips": -1.0}
@@ -60,7 +60,7 @@ class GirthRows:
         row with a nonzero derivative, plane rows counted from ``len(keys)``; ``signs``: d row / d slack /
         SLACK_UNIT per plane row."""
         planes = self._watched(planes)
-        r = (np.array([meas.values[k] for k in self.keys]) - self.goal) / _MM * self.wres
+        r = (np.array([meas.values[k] for k in self.keys]) - self.goal) / MM * self.wres
         grads, rows, signs = [], [], []
         for i, k in enumerate(self.keys):
             if planes is None or k not in SIGN or k not in meas.at_planes:
@@ -87,7 +87,7 @@ class GirthRows:
 
     def _excess(self, meas, i, k):
         """Per watched plane of girth ``k``: how far (weighted mm) it lies on the allowed side of its goal."""
-        return SIGN[k] * (np.asarray(meas.at_planes[k]) - self.goal[i]) / _MM * self.wres[i]
+        return SIGN[k] * (np.asarray(meas.at_planes[k]) - self.goal[i]) / MM * self.wres[i]
 
     def slack0(self, meas, planes):
         """(n,) the slacks that start an inner solve at ``meas`` (taken at ``planes``): each plane's excess,
@@ -151,13 +151,13 @@ def outer_loop(problem, x, bounds, reg, seen, max_outer, max_inner):
         x = q[:x.size]
         r, meas = problem.residual(x, None)  # full band search at the new shape
         add_planes(seen, meas.candidates, SEEN_PLANES)
-        miss = float(np.max(np.abs(r[hard(None)]), initial=0.0)) * _MM
+        miss = float(np.max(np.abs(r[hard(None)]), initial=0.0)) * MM
         if miss < TOLERANCE_M * 0.5:
             break
         # a target out of reach: the inner solve missed it by over 1 mm even at its own planes, twice
         # running without halving the miss (on every body of the reach list it ends within 0.03 mm;
         # after one such pass new planes can still open the way), or passes stop closing in
-        inner = float(np.max(np.abs(r_inner[hard_in]), initial=0.0)) * _MM
+        inner = float(np.max(np.abs(r_inner[hard_in]), initial=0.0)) * MM
         if inner > EARLY_EXIT and inner > 0.5 * prev_inner or (miss > 1e-3 and miss > 0.8 * worst):
             break
         prev_inner = inner

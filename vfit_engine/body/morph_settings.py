@@ -9,8 +9,9 @@ UNDERBUST_SD = 0.04
 TOLERANCE_M = 0.0002
 #: mass within this fraction of its target counts as met (the promise is 1 %).
 TOLERANCE_MASS = 0.002
-_MM = 1e-3
-_MASS_UNIT = 1e-3  # mass residual unit: 0.1 % counts like 1 mm
+#: residual units: a length residual counts in mm (m per mm), a mass residual in 0.1 % (counts like 1 mm)
+MM = 1e-3
+MASS_UNIT = 1e-3
 # A strict hierarchy by weight (residuals in mm): a 1 mm target miss costs 1, a 1 mm
 # hold miss 1e-4, a whole unit of a primary channel 1e-10 and of a secondary one 1e-8,
 # so a target gives way to holds by only ~HOLD_WEIGHT**2 of their residual.

@@ -32,10 +32,14 @@ import numpy as np
 
 from vfit_engine.body.segment import bone_positions
 from vfit_engine.body.skinning import Skinning
+from vfit_engine.errors import InputError
 from vfit_engine.io.bvh import Motion
 
 #: File axes -> vfit axes for a Z-up file (MakeHuman's poses): (x, y, z) -> (x, z, -y).
 Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+#: A BVH file naming at least this many of the rig's bones is in the rig's own names (MakeHuman's poses name
+#: all 163); one naming fewer would leave most of the body in its rest pose and is refused.
+RIG_NAMES_MIN = 10
 
 
 def file_axes(motion):
@@ -66,6 +70,36 @@ def rig_order(model):
     for i in range(len(names)):
         visit(i)
     return np.array(order, dtype=np.int64), parent
+
+
+def joint_naming(model, motion, source, namings=None, fix="rename its joints to the rig's bones"):
+    """How ``motion``'s joints name the rig's bones: ``"rig names"`` when at least :data:`RIG_NAMES_MIN` of them
+    are bones of the rig, else the first key of ``namings`` ({how: {file joint: rig bone}}, e.g. CMU's names)
+    whose mapping knows as many. The one check of ``vfit pose`` and ``vfit animate``.
+
+    Raises
+    ------
+    InputError
+        ``source: ...; fix`` when no naming fits: how many joints each naming knows (the rig's bones among them
+        named: a file's ``root`` is the rig's root bone), and the joints none knows.
+    """
+    joints, rig = set(motion.names), set(model.bone_names)
+    known = {"rig names": rig, **{how: set(mapping) for how, mapping in (namings or {}).items()}}
+    for how, names in known.items():
+        if len(joints & names) >= RIG_NAMES_MIN:
+            return how
+    bones = [n for n in motion.names if n in rig]
+    other = [n for n in motion.names if not any(n in names for names in known.values())]
+    counts = [f"{len(bones)} are bones of the default rig" + (f" ({_listed(bones)})" if bones else "")]
+    counts += [f"{len(joints & names)} are {how}" for how, names in known.items() if how != "rig names"]
+    raise InputError(f"{source}: of its {len(motion.names)} joints {', '.join(counts)}"
+                     + (f", and {_listed(other)} {'is' if len(other) == 1 else 'are'} neither" if other else "")
+                     + f"; at least {RIG_NAMES_MIN} are needed to pose the body: {fix}")
+
+
+def _listed(names, most=4):
+    """``a, b, c, d, ...``: the first ``most`` of ``names``."""
+    return ", ".join(names[:most]) + (", ..." if len(names) > most else "")
 
 
 def bone_rotations(model, motion, frame=0, axes=None):

@@ -117,10 +117,10 @@ class ShapeFactors:
             if v_ref.shape != (n, 3) or not np.isfinite(v_ref).all():
                 raise InputError(f"reference verts must be finite with shape ({n}, 3), got {v_ref.shape}")
             out.v_ref = v_ref.copy()
-            out.g_ref = out._feature_vector(g_ref, "reference features")
+            out.g_ref = out.feature_vector(g_ref, "reference features")
         return out
 
-    def _feature_vector(self, g, what="g_des") -> np.ndarray:
+    def feature_vector(self, g, what="g_des") -> np.ndarray:
         """(k,) float64 m from a dict name -> m (exactly the fitted names) or a (k,) array."""
         k = len(self.features)
         if isinstance(g, dict):
@@ -150,7 +150,7 @@ class ShapeFactors:
         (n, 3) float64, m
             ``v_ref + sum_k (g_des_k - g_ref_k) r_k``.
         """
-        d = self._feature_vector(g_des) - self.g_ref
+        d = self.feature_vector(g_des) - self.g_ref
         return self.v_ref + np.tensordot(d, self.r, axes=1)
 
 
@@ -178,7 +178,7 @@ class ShapeFactors:
         measured : dict name -> m
             The features of ``verts``; compare with ``g_des`` (not guaranteed within ``tol``).
         """
-        want = self._feature_vector(g_des)
+        want = self.feature_vector(g_des)
         g = want.copy()
         for _ in range(max(1, int(max_iter))):
             verts = self.shape(g)

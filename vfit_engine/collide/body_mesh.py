@@ -37,7 +37,8 @@ _MAX_CELLS = 8_000_000
 _MARGIN_PER_CELL = 2.0
 
 
-def _as_points(a, name):
+def as_points(a, name):
+    """``a`` as (n, 3) float64 contiguous finite points, or an InputError naming it ``name``."""
     a = np.ascontiguousarray(a, dtype=np.float64)
     if a.ndim != 2 or a.shape[1] != 3:
         raise InputError(f"{name} must be an (n, 3) array, got shape {a.shape}")
@@ -75,7 +76,7 @@ def mesh_normals(verts, tris):
     return tri_normals, tri_edges, edge_normals, vert_normals
 
 
-def _morton_order(points):
+def morton_order(points):
     """Permutation sorting ``points`` (n, 3) along a Z-order curve (10 bits per axis)."""
     lo = points.min(axis=0)
     span = max(float(np.max(points.max(axis=0) - lo)), 1e-300)
@@ -87,7 +88,7 @@ def _morton_order(points):
     return np.argsort(code, kind="stable")
 
 
-def _pair_estimate(area, perimeter, count, reach, h):
+def pair_estimate(area, perimeter, count, reach, h):
     """Expected (cell, triangle) pairs of the grid, with room to spare: the cells whose centre lies
     within ``reach`` of a triangle fill its ``reach``-neighbourhood, of volume
     ``2 A r + (pi / 2) P r^2 + (4 / 3) pi r^3`` (Steiner's formula; A area, P perimeter), summed
@@ -145,7 +146,7 @@ class MeshCollider:
         tris = np.ascontiguousarray(tris, dtype=np.int64)
         if tris.ndim != 2 or tris.shape[1] != 3 or tris.shape[0] == 0:
             raise InputError(f"tris must be a non-empty (t, 3) array, got shape {tris.shape}")
-        verts = _as_points(verts, "verts")
+        verts = as_points(verts, "verts")
         if tris.min() < 0 or tris.max() >= verts.shape[0]:
             raise InputError("tris index a vertex that does not exist")
         for name, value, lo in (("skin", skin, 0.0), ("friction", friction, 0.0), ("restitution", restitution, 0.0),
@@ -192,7 +193,7 @@ class MeshCollider:
         a, b, c = verts[self.tris[:, 0]], verts[self.tris[:, 1]], verts[self.tris[:, 2]]
         # kernels see the triangles in Z-order of their centroids, so the triangles of one
         # cell sit together in memory (queries are bound by memory latency, not arithmetic)
-        self._set_order(_morton_order((a + b + c) / 3.0))
+        self._set_order(morton_order((a + b + c) / 3.0))
         lo, hi = verts.min(axis=0), verts.max(axis=0)
         h = self._cell_request
         if h is None:
@@ -241,7 +242,7 @@ class MeshCollider:
         self._fill(verts, exact_empty=False)
 
     def _check_verts(self, verts):
-        verts = _as_points(verts, "verts")
+        verts = as_points(verts, "verts")
         if verts.shape[0] != self._vert_count:
             raise InputError(f"verts must have {self._vert_count} rows (the triangles' vertices), got {verts.shape[0]}")
         return verts
@@ -286,7 +287,7 @@ class MeshCollider:
         reach = margin + half + 1e-9 * float(np.max(verts.max(axis=0) - verts.min(axis=0)) + h)
         # one scratch arena: the pairs (9 bytes each, and a byte per pair for cell_lists), then
         # the empty-cell pass (18 bytes per cell); fresh memory is costly to touch (_scratch)
-        cap = _pair_estimate(area, perimeter, nt, reach, h)
+        cap = pair_estimate(area, perimeter, nt, reach, h)
         while True:
             arena = self._scratch("arena", max(10 * cap, 18 * ncells) + 64, np.uint8)
             cap = (arena.size - 64) // 10
@@ -355,7 +356,7 @@ class MeshCollider:
             pseudo-normal when ``|d| < 1 nm``.
         tri : (n,) int64
         """
-        points = _as_points(points, "points")
+        points = as_points(points, "points")
         max_out = self.radius if max_out is None else float(max_out)
         max_in = self.radius if max_in is None else float(max_in)
         n = points.shape[0]

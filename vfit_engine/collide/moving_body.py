@@ -19,7 +19,7 @@ between them):
   transform, and settled by an exact query where nothing carries it.
 
 So every query at any time of the interval is exact, as on a still body (the same search,
-:func:`vfit_engine.kernels.collide_mesh._query_point`); points well clear of the body are dismissed a
+:func:`vfit_engine.kernels.collide_mesh.query_point`); points well clear of the body are dismissed a
 little less often (no distance transform: an empty cell's bound is ``reach``).
 
 The grid box is fixed for the motion: give it the box of all its poses (``box``).
@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from vfit_engine.collide.body_mesh import _as_points, _morton_order, _pair_estimate
+from vfit_engine.collide.body_mesh import as_points, morton_order, pair_estimate
 from vfit_engine.errors import InputError
 from vfit_engine.kernels import collide_mesh as K
 from vfit_engine.kernels import collide_mesh_build as B
@@ -86,7 +86,7 @@ class MovingBodyCollider:
 
     def __init__(self, verts, tris, box=None, active=None, cell=None, margin=None, piece=None):
         tris = np.ascontiguousarray(tris, dtype=np.int64)
-        verts = _as_points(verts, "verts")
+        verts = as_points(verts, "verts")
         if tris.ndim != 2 or tris.shape[1] != 3 or tris.shape[0] == 0:
             raise InputError(f"tris must be a non-empty (t, 3) array, got shape {tris.shape}")
         if tris.min() < 0 or tris.max() >= verts.shape[0]:
@@ -120,7 +120,7 @@ class MovingBodyCollider:
             raise InputError(f"a {h} m cell makes {ncells} grid cells for this motion's box: choose a larger cell")
         self.ncells = ncells
         # kernels see the triangles in Z-order of their centroids (as the still body's grid)
-        order = _morton_order((a + b + c) / 3.0)
+        order = morton_order((a + b + c) / 3.0)
         self._tri_order = np.flatnonzero(active)[order]  # grid triangle -> triangle of ``tris``
         self.tris = all_tris
         self._grid_tris = np.ascontiguousarray(tris[order])
@@ -151,7 +151,7 @@ class MovingBodyCollider:
         self._queue = np.empty(ncells, dtype=np.int64)
         area = float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
         perimeter = float(sum(np.linalg.norm(u - w, axis=1).sum() for u, w in ((b, a), (c, b), (a, c))))
-        self._cap = _pair_estimate(area, perimeter, nt, self.reach + self.piece, h)
+        self._cap = pair_estimate(area, perimeter, nt, self.reach + self.piece, h)
         self._pairs = None
         self._cells = None
         self.timings = dict(bin=0.0, lists=0.0, sides=0.0, pose=0.0)
@@ -183,7 +183,7 @@ class MovingBodyCollider:
         B.mesh_normals(verts, tris, tri_edges, tn, en, vn)
         tri_data = np.empty((nt, 16))
         area, perimeter = B.triangle_records(verts, tris, tri_data)
-        cap = _pair_estimate(area, perimeter, nt, self.reach, self.cell)
+        cap = pair_estimate(area, perimeter, nt, self.reach, self.cell)
         while True:
             pair_cell, pair_tri, level = np.empty(cap, np.int32), np.empty(cap, np.int32), np.empty(cap, np.uint8)
             n = B.bin_triangles(verts, tris, self.origin, self.dims, self.cell, self.reach, pair_cell, pair_tri, level)
@@ -210,7 +210,7 @@ class MovingBodyCollider:
         near the surface over the interval and puts the geometry at the interval's start (``s = 0``).
         Replaces :attr:`grid`.
         """
-        verts_next = _as_points(verts_next, "verts")
+        verts_next = as_points(verts_next, "verts")
         if verts_next.shape != self._v1.shape:
             raise InputError(f"verts must have shape {self._v1.shape}, got {verts_next.shape}")
         lo, hi = self.origin, self.origin + self.dims * self.cell
@@ -320,7 +320,7 @@ class MovingBodyCollider:
     def query(self, points, max_out=0.05, max_in=0.05):
         """Closest point, signed distance, outward normal and triangle of each point, against the surface at
         the current time (:meth:`vfit_engine.collide.body_mesh.MeshCollider.query`)."""
-        points = _as_points(points, "points")
+        points = as_points(points, "points")
         n = points.shape[0]
         d, closest, normal = np.empty(n), np.empty((n, 3)), np.empty((n, 3))
         tri = np.empty(n, dtype=np.int64)

@@ -72,7 +72,7 @@ def cotangent_weights(verts, tris, min_weight=MIN_COT_WEIGHT):
     return edges, np.maximum(weights, min_weight)
 
 
-def _incidence(edges, n_verts):
+def edge_incidence(edges, n_verts):
     """Sparse (n_verts, e) matrix with a 1 at both ends of every edge."""
     e = len(edges)
     rows = np.concatenate([edges[:, 0], edges[:, 1]])
@@ -95,7 +95,7 @@ def arap_rotations(source, target, edges, weights, incidence=None):
     weights : (e,) float64
         Edge weights (``cotangent_weights`` of the source).
     incidence : scipy.sparse matrix or None
-        ``_incidence(edges, v)``, to reuse between calls.
+        ``edge_incidence(edges, v)``, to reuse between calls.
 
     Returns
     -------
@@ -106,7 +106,7 @@ def arap_rotations(source, target, edges, weights, incidence=None):
     target = np.asarray(target, dtype=np.float64)
     n = source.shape[0]
     if incidence is None:
-        incidence = _incidence(edges, n)
+        incidence = edge_incidence(edges, n)
     e_src = source[edges[:, 1]] - source[edges[:, 0]]
     e_dst = target[edges[:, 1]] - target[edges[:, 0]]
     # the edge seen from either end is (-e)(-e')^T = e e'^T: one outer product serves both ends

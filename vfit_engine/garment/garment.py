@@ -26,6 +26,9 @@ MAX_COORDINATE = 1e6
 HEIGHT_RATIO_RANGE = (0.05, 1.3)
 #: Ratio a typical garment has; among plausible units the one closest to it (log scale) wins.
 TYPICAL_HEIGHT_RATIO = 0.55
+#: A garment whose every extent is under this share of the body's height (25 cm on 1.7 m: a cap, a sock) is
+#: questioned when its units were given and its height reads as a garment in another unit.
+SMALL_SIZE_RATIO = 0.15
 #: Body height assumed when none is given, m.
 DEFAULT_BODY_HEIGHT_M = 1.7
 
@@ -120,6 +123,19 @@ def choose_units(height, body_height_m=None):
     return min(LENGTH_UNITS, key=score), False
 
 
+def _small_for_units(verts, height, units, body, body_height_m):
+    """A warning (a list of at most one) for a garment whose every extent is under :data:`SMALL_SIZE_RATIO` of
+    the body in the ``units`` given while its height reads as a garment in another unit: a decimetre suit read
+    in cm is 13 cm tall, inside the height range, and drapes to a 1,400 % strain."""
+    size = float(np.ptp(verts, axis=0).max()) * LENGTH_UNITS[units]
+    guess, plausible = choose_units(height, body_height_m)
+    if size >= SMALL_SIZE_RATIO * body or guess == units or not plausible:
+        return []
+    return [f"garment is at most {size:.3g} m across read in {units}, small for a garment on a {body:.2g} m body "
+            f"(its height says {guess}: {height * LENGTH_UNITS[guess]:.3g} m tall); check --units (a cap or a sock "
+            "can be this small)"]
+
+
 def piece_labels(n_verts, edges):
     """(n,) int64 connected-component label of every vertex; labels ordered by first vertex."""
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
@@ -185,6 +201,22 @@ def find_mhclo(path):
     return None
 
 
+def _check_manifold(mesh, path):
+    """InputError naming the first edge shared by more than two triangles (of the faces' fans): the fit table's
+    sections through it are ambiguous, and the drape would fail there, after all its work."""
+    tris = mesh.triangles()
+    e = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+    keys, counts = np.unique(e[:, 0] * mesh.n_verts + e[:, 1], return_counts=True)
+    over = np.flatnonzero(counts > 2)
+    if over.size:
+        i, j = divmod(int(keys[over[0]]), mesh.n_verts)
+        i, j = i + 1, j + 1
+        more = f" (and {over.size - 1} more such edges)" if over.size > 1 else ""
+        raise InputError(f"{path}: the edge between vertices {i} and {j} is shared by {counts[over[0]]} triangles, "
+                         f"more than two{more}: a non-manifold mesh; remove the duplicate or extra faces there or "
+                         "split the vertices")
+
+
 def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
     """Read a garment OBJ/PLY, convert it to metres and validate it.
 
@@ -205,8 +237,8 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
     ------
     InputError
         Unreadable or garbled file, no vertices or faces, NaN/inf coordinates or beyond
-        ``MAX_COORDINATE``, more than ``max_verts`` vertices, an unknown unit, every face degenerate, or
-        two vertices joined by an edge at the same point.
+        ``MAX_COORDINATE``, more than ``max_verts`` vertices, an unknown unit, every face degenerate,
+        two vertices joined by an edge at the same point, or an edge shared by more than two triangles.
     """
     path = Path(path)
     if units != "auto" and units not in LENGTH_UNITS:
@@ -228,9 +260,10 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
         raise InputError(f"{path}: garment has no faces")
     warnings = []
     height = float(np.ptp(mesh.verts[:, 1]))
+    if height <= 0:  # flat in Y: no unit makes it hang on a body (and a ratio of 0 has no logarithm)
+        raise InputError(f"{path}: garment has zero height (every vertex at y = {mesh.verts[0, 1]:g}); vfit "
+                         "drapes garments modelled Y up, as worn: export it with Y up")
     if units == "auto":
-        if height <= 0:
-            raise InputError(f"{path}: garment has zero height, cannot guess its units (pass units)")
         units, plausible = choose_units(height, body_height_m)
         if not plausible:
             warnings.append(
@@ -243,6 +276,8 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
             hint = f"its height says {guess}" if plausible else "no unit makes it garment-sized"
             warnings.append(f"garment is {height * LENGTH_UNITS[units]:.3g} m tall read in {units}, implausible "
                             f"for a garment on a {body:.2g} m body ({hint}); check --units")
+        else:
+            warnings.extend(_small_for_units(mesh.verts, height, units, body, body_height_m))
     mesh.verts = np.ascontiguousarray(mesh.verts * LENGTH_UNITS[units])
     bad = degenerate_faces(mesh)
     if bad.all():
@@ -256,6 +291,7 @@ def load_garment(path, units="auto", body_height_m=None, max_verts=MAX_VERTS):
         i, j = e[int(np.argmax(flat))] + 1
         raise InputError(f"{path}: vertices {i} and {j} are at the same point but joined by an edge (coincident "
                          "vertices): merge them or move one apart")
+    _check_manifold(mesh, path)
     used = np.zeros(mesh.n_verts, dtype=bool)
     used[mesh.face_verts] = True
     if not used.all():

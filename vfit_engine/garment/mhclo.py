@@ -17,11 +17,13 @@ Units: the offsets ``d`` and the reference distances ``ref`` are in MakeHuman un
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from vfit_engine.body.model import N_VERTS
 from vfit_engine.errors import InputError
 from vfit_engine.units import LENGTH_UNITS
 
@@ -72,6 +74,14 @@ class MhcloBinding:
         return int(self.ref_verts.shape[0])
 
     @property
+    def top_vertex(self):
+        """Highest body vertex index the binding reads (its references and its scale vertices)."""
+        top = int(self.ref_verts.max())
+        for a, b, _ in self.scales.values():
+            top = max(top, int(a), int(b))
+        return top
+
+    @property
     def gender(self):
         """``"female"``, ``"male"`` or None from the tags."""
         return gender_from_tags(self.tags)
@@ -112,6 +122,20 @@ def _parse_delete_verts(words, out):
         prev = v
 
 
+def _check_line(path, lineno, verts, values, what):
+    """InputError ``path:line: ...; fix`` for a body vertex outside the hm08 base mesh or a NaN/inf value:
+    checked where they are read, as a later index error or NaN drape could not say which line was wrong."""
+    out = [int(v) for v in verts if not 0 <= int(v) < N_VERTS]
+    if out:
+        raise InputError(f"{path}:{lineno}: body vertex {out[0]} is out of range, the hm08 base mesh has vertices "
+                         f"0..{N_VERTS - 1}; fix the line (or the file binds another base mesh: re-export it "
+                         "from MakeHuman for hm08)")
+    bad = [v for v in values if not math.isfinite(v)]
+    if bad:
+        raise InputError(f"{path}:{lineno}: {what} {bad[0]} is not a finite number; fix the line (weights are "
+                         "barycentric, summing to 1; offsets in dm)")
+
+
 def parse_mhclo(path):
     """Parse a ``.mhclo`` file.
 
@@ -126,7 +150,8 @@ def parse_mhclo(path):
     Raises
     ------
     InputError
-        Unreadable file, a garbled binding line, or no binding at all.
+        Unreadable file, a garbled binding line, a body vertex outside the hm08 base mesh, a NaN/inf weight,
+        offset or scale, or no binding at all; one line naming the file and line.
     """
     path = Path(path)
     try:
@@ -159,6 +184,10 @@ def parse_mhclo(path):
                 b.z_depth = int(words[1])
             elif key in axis:
                 b.scales[axis[key]] = (int(words[1]), int(words[2]), float(words[3]))
+                _check_line(path, lineno, [int(words[1]), int(words[2])], [float(words[3])], "reference distance")
+                if not float(words[3]) > 0:
+                    raise InputError(f"{path}:{lineno}: {key} reference distance {words[3]} is not positive; "
+                                     "write the rest distance between the two vertices (dm)")
             elif key == "verts":
                 status = "verts"
             elif key == "delete_verts":
@@ -178,11 +207,14 @@ def parse_mhclo(path):
                         offsets.append((float(words[6]), float(words[7]), float(words[8])))
                     else:
                         offsets.append((0.0, 0.0, 0.0))
+                _check_line(path, lineno, refs[-1], weights[-1] + offsets[-1], "weight or offset")
             elif status == "delete" and (key[0].isdigit() or key == "-"):
+                _check_line(path, lineno, [int(w) for w in words if w != "-"], [], "")  # before a run expands
                 _parse_delete_verts(words, deleted)
             # other keywords (material details, shear, special_pose, ...) do not affect fitting
         except (ValueError, IndexError):
-            raise InputError(f"{path}:{lineno}: cannot read .mhclo line {line.strip()[:60]!r}") from None
+            raise InputError(f"{path}:{lineno}: cannot read .mhclo line {line.strip()[:60]!r}; fix or remove "
+                             "the line") from None
     if not refs:
         raise InputError(f"{path}: no vertex binding ('verts' block) in the .mhclo file")
     b.ref_verts = np.asarray(refs, dtype=np.int64)

@@ -35,7 +35,7 @@ from scipy.spatial import cKDTree
 from vfit_engine.body.model import N_BODY, N_VERTS, BodyModel
 from vfit_engine.collide.body_mesh import mesh_normals
 from vfit_engine.errors import InputError
-from vfit_engine.garment.arap import _incidence, arap_rotations, check_points, cotangent_weights
+from vfit_engine.garment.arap import arap_rotations, check_points, cotangent_weights, edge_incidence
 from vfit_engine.garment.mhclo import evaluate_mhclo
 from vfit_engine.rotations import dual_quat_to_rigid, rigid_to_dual_quat
 
@@ -68,7 +68,7 @@ class BodyFrames:
         if self.tris.ndim != 2 or self.tris.shape[1] != 3 or self.tris.max() >= N_BODY or self.tris.min() < 0:
             raise InputError("body triangles must be (t, 3) indices into the 13,380 body vertices")
         self.edges, self.weights = cotangent_weights(self.source, self.tris)
-        self.incidence = _incidence(self.edges, N_BODY)
+        self.incidence = edge_incidence(self.edges, N_BODY)
         self._tree = None
 
     @property
@@ -184,16 +184,8 @@ def blend_dqs(points, idx, weights, rot, source, target, dq=None):
     return np.einsum("nij,nj->ni", r, points) + t
 
 
-def _mhclo_top(binding):
-    """Highest body vertex index a binding reads (references and scale vertices)."""
-    top = int(binding.ref_verts.max())
-    for a, b, _ in binding.scales.values():
-        top = max(top, int(a), int(b))
-    return top
-
-
 def _mhclo_fit(binding, body, which):
-    top = _mhclo_top(binding)
+    top = binding.top_vertex
     if body.shape[0] <= top:
         raise InputError(
             f"the .mhclo binding uses helper vertices (up to index {top}) that the {which} body lacks "
@@ -341,7 +333,7 @@ def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, meth
     body = np.ascontiguousarray(body_verts, dtype=np.float64)
     used = method
     if method == "auto":
-        fits = mhclo is not None and min(ref.shape[0], body.shape[0]) > _mhclo_top(mhclo)
+        fits = mhclo is not None and min(ref.shape[0], body.shape[0]) > mhclo.top_vertex
         used = "mhclo-delta" if fits else "dqs"
     n = min(ref.shape[0], body.shape[0], N_BODY)
     identity = used != "mhclo" and ref.shape[1:] == body.shape[1:] and np.array_equal(ref[:n], body[:n])

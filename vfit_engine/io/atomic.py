@@ -10,6 +10,13 @@ from vfit_engine.errors import InputError
 
 #: The temporary files :func:`atomic_write` makes beside its target (".NAME.RANDOM.tmp").
 TEMP_GLOB = ".*.tmp"
+#: Characters of the target's name in its temporary file's: a name near the file system's limit (255 bytes)
+#: must not fail only because its temporary file's name is longer (4 bytes a character at most in UTF-8).
+TEMP_NAME_CHARS = 40
+
+
+def _temp_prefix(path):
+    return f".{path.name[:TEMP_NAME_CHARS]}."
 
 
 @contextlib.contextmanager
@@ -41,14 +48,15 @@ def atomic_write(path, mode="w", encoding="utf-8", newline="\n"):
     path = Path(path)
     directory = path.parent if str(path.parent) else Path(".")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)  # TEMP_GLOB
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".tmp", dir=directory)  # TEMP_GLOB
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
         if mode == "wb":
             f = os.fdopen(fd, "wb")
         else:
-            f = os.fdopen(fd, "w", encoding=encoding, newline=newline)
+            # backslashreplace: a file name not in UTF-8 (os gives its bytes as surrogates) in a header comment
+            f = os.fdopen(fd, "w", encoding=encoding, newline=newline, errors="backslashreplace")
         with f:
             yield f
         # mkstemp creates 0600; give the result the permissions a plain open() would
@@ -62,6 +70,32 @@ def atomic_write(path, mode="w", encoding="utf-8", newline="\n"):
         if isinstance(exc, OSError) and not isinstance(exc, InputError):
             raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
         raise
+
+
+def check_writable(path):
+    """Raise InputError unless :func:`atomic_write` to ``path`` can succeed now: make and remove its temporary
+    file and, when ``path`` is absent, ``path`` itself. Finds, before any work, what the write would find after
+    it: a name longer than the file system allows, a directory that takes no files (``/proc``), one not
+    writable, a directory where the file goes.
+
+    Parameters
+    ----------
+    path : str or Path
+        In an existing directory.
+    """
+    path = Path(path)
+    directory = path.parent if str(path.parent) else Path(".")
+    if os.path.isdir(path):  # not Path.is_dir: it raises on a name too long
+        raise InputError(f"cannot write {path}: it is a directory; remove it or choose another path")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".tmp", dir=directory)
+        os.close(fd)
+        os.unlink(tmp)
+        if not os.path.lexists(path):
+            os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+            os.unlink(path)
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}; choose another path") from None
 
 
 def remove_orphans(directory):

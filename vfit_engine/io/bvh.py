@@ -15,9 +15,13 @@ Conventions
     * Position channels add to OFFSET (they do not replace it), whichever joint carries them.
     * Values are written with the shortest digits that read back to the same float64, so a
       read -> write -> read round trip is exact.
+    * A file is read line by line, never whole, and capped like a mesh (:data:`MAX_BVH_FRAMES`,
+      :data:`MAX_BVH_JOINTS`): a hostile ``Frames: 1000000`` is refused at its header line, and
+      ``read_bvh(path, frame=k)`` keeps one frame of a long file.
 """
 from __future__ import annotations
 
+import itertools
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +34,13 @@ from vfit_engine.io.atomic import atomic_write
 #: channel name -> (kind, axis); kind 0 = position, 1 = rotation; axis 0, 1, 2 = X, Y, Z.
 CHANNELS = {f"{a}{kind}": (k, i) for k, kind in enumerate(("position", "rotation")) for i, a in enumerate("XYZ")}
 _CANONICAL = {name.lower(): name for name in CHANNELS}
+#: Most frames vfit reads from a BVH file (a cap against absurd inputs, as ``io.mesh.MAX_VERTS`` for meshes):
+#: over 4 minutes at CMU's 120 frames per second, 16 at 30; a full-rig file this long holds 29 M values (235 MB).
+MAX_BVH_FRAMES = 30_000
+#: Most joints vfit reads from a BVH file: the default rig has 163, CMU's skeleton 31.
+MAX_BVH_JOINTS = 1_000
+#: Longest line read from a BVH file, characters (a frame of the full rig, 978 values, is about 10,000).
+_MAX_LINE = 1 << 20
 
 
 @dataclass
@@ -73,9 +84,9 @@ class Motion:
         if self.frames.ndim < 2 and self.frames.size == 0:  # "no frames" still needs its c columns
             self.frames = self.frames.reshape(0, sum(map(len, self.channels)))
         self.frame_time = float(self.frame_time)
-        self._check()
+        self.check()
 
-    def _check(self):
+    def check(self):
         """Raise ValueError when the fields disagree with each other (a caller's bug, not a file's)."""
         j, width = len(self.names), sum(map(len, self.channels))
         if j == 0 or self.parents.shape != (j,) or self.offsets.shape != (j, 3) or len(self.channels) != j:
@@ -185,7 +196,7 @@ class _Hierarchy:
     """The HIERARCHY section read line by line; one method per keyword keeps each one short."""
 
     def __init__(self, path):
-        self.path, self.names, self.parents, self.lines = path, [], [], []
+        self.path, self.names, self.parents, self.lines, self.index = path, [], [], [], {}  # index: name -> joint
         self.offsets, self.channels, self.end_sites = [], [], {}
         self.stack = []  # open blocks: a joint index, or "end" for an End Site
         self.header = None  # (what, line, block) of a ROOT/JOINT/End Site whose "{" has not come yet
@@ -198,9 +209,13 @@ class _Hierarchy:
         if not name or (key == "ROOT") == bool(self.names) or key == "JOINT" and not isinstance(top, int):
             raise self.fail(ln, f"'{' '.join(tok)}' out of place; a file has one 'ROOT name' and every "
                                 "'JOINT name' sits inside the ROOT's or another joint's braces")
-        if name in self.names:
-            first = self.lines[self.names.index(name)]
+        if name in self.index:
+            first = self.lines[self.index[name]]
             raise self.fail(ln, f"joint {name!r} already named on line {first}; rename one")
+        if len(self.names) == MAX_BVH_JOINTS:
+            raise self.fail(ln, f"more than {MAX_BVH_JOINTS} joints, the limit (a body's rig has a few hundred at "
+                                "most); check the file, or remove the joints no body needs")
+        self.index[name] = len(self.names)
         self.parents.append(-1 if key == "ROOT" else top)
         self.names.append(name), self.lines.append(ln), self.offsets.append(None), self.channels.append(None)
         self.header = (f"{key} {name}", ln, len(self.names) - 1)
@@ -247,12 +262,14 @@ class _Hierarchy:
             else:
                 raise self.fail(ln, f"unbalanced braces: unexpected {b!r}; every block is 'NAME {{ ... }}'")
 
-    def parse(self, lines, start):
-        """Read from line ``start`` (after HIERARCHY) up to MOTION; return MOTION's 0-based index."""
-        for n in range(start, len(lines)):
-            tok, ln = lines[n].split(), n + 1
+    def parse(self, lines):
+        """Read the numbered ``lines`` (after HIERARCHY) up to MOTION; return MOTION's line number."""
+        last = 1  # the last line that is not blank: where an end-of-file error points
+        for ln, line in lines:
+            tok = line.split()
             if not tok:
                 continue
+            last = ln
             if self.header is not None and tok[0] != "{":
                 raise self.fail(ln, f"expected '{{' after {self.header[0]} on line {self.header[1]}; open its block")
             if tok[0] in ("ROOT", "JOINT"):
@@ -266,68 +283,110 @@ class _Hierarchy:
             elif tok[0] == "MOTION":
                 if not self.names:
                     raise self.fail(ln, "empty hierarchy: no ROOT before MOTION; add 'ROOT name { OFFSET .. }'")
-                return n
+                return ln
             else:
                 raise self.fail(ln, f"unknown keyword {tok[0]!r} in the hierarchy; expected ROOT, JOINT, End Site, "
                                     "OFFSET, CHANNELS, braces or MOTION")
         why = f"unbalanced braces: {len(self.stack)} block(s) never closed" if self.stack else "no MOTION section"
-        raise self.fail(len(lines), f"{why} at the end of the file; complete the file")
+        raise self.fail(last, f"{why} at the end of the file; complete the file")
 
 
-def _parse_frames(fail, lines, start, width):
-    """``(frames (f, width), frame_time)`` from the lines after MOTION (0-based index ``start``)."""
-    body = [(n + 1, line.strip()) for n, line in enumerate(lines[start + 1:], start + 1) if line.strip()]
+def _filled(lines):
+    """The (line number, line) of ``lines`` that are not blank."""
+    return ((ln, line) for ln, line in lines if line.strip())
+
+
+def _parse_frames(fail, lines, motion_line, width, frame, max_frames):
+    """``(frames, frame_time)`` from the numbered ``lines`` after MOTION (on line ``motion_line``): every frame
+    (f, width), or only ``frame`` (1, width) when it is not None; the file's other frame lines are counted, never
+    split or kept, so the memory is one frame's."""
     heads = []
-    for k, pattern in enumerate((r"Frames:\s*(\S+)", r"Frame\s+Time:\s*(\S+)")):
-        if len(body) <= k or not re.fullmatch(pattern, body[k][1]):
-            raise fail(body[k][0] if len(body) > k else start + 1,
-                       "MOTION must be followed by the lines 'Frames: N' and 'Frame Time: seconds'; add them")
-        heads.append(re.fullmatch(pattern, body[k][1])[1])
-    if not heads[0].isdecimal():
-        raise fail(body[0][0], f"'Frames: {heads[0]}' is not a whole number; write the number of frame lines")
-    frame_time = _floats(fail, body[1][0], heads[1:], "Frame Time")[0]
-    rows = body[2:]
-    if len(rows) != int(heads[0]):
-        raise fail(body[0][0], f"'Frames: {heads[0]}' but {len(rows)} frame lines follow; make them agree")
-    frames = np.zeros((len(rows), width))
-    for f, (ln, line) in enumerate(rows):
-        tok = line.split()
-        if len(tok) != width:
-            raise fail(ln, f"frame {f + 1}: expected {width} values (one per channel), got {len(tok)}; fix the line")
-        frames[f] = _floats(fail, ln, tok, f"frame {f + 1}")
+    for pattern in (r"Frames:\s*(\S+)", r"Frame\s+Time:\s*(\S+)"):
+        ln, line = next(_filled(lines), (motion_line, ""))
+        if not re.fullmatch(pattern, line.strip()):
+            raise fail(ln, "MOTION must be followed by the lines 'Frames: N' and 'Frame Time: seconds'; add them")
+        heads.append((ln, re.fullmatch(pattern, line.strip())[1]))
+    (count_line, count), (time_line, time_text) = heads
+    if not count.isdecimal():
+        raise fail(count_line, f"'Frames: {count}' is not a whole number; write the number of frame lines")
+    n = int(count)
+    if n > max_frames:
+        raise fail(count_line, f"'Frames: {n}' is more than the limit of {max_frames} frames; cut the motion to the "
+                               "part you need (or keep every k-th frame and scale 'Frame Time' by k)")
+    frame_time = _floats(fail, time_line, [time_text], "Frame Time")[0]
+    if frame is not None and not 0 <= frame < n:
+        raise fail(count_line, f"frame {frame} asked for, the file has {n}; "
+                               + (f"ask for one of 0..{n - 1}" if n else "add a frame line"))
+    frames = np.zeros((n if frame is None else 1, width))
+    rows = _filled(lines)
+    f = 0
+    for ln, line in rows:
+        if f == n:  # count what follows up to the cap: a huge file is not read to its end to word the error
+            seen = n + 1 + sum(1 for _ in itertools.islice(rows, max(max_frames - n, 0)))
+            said = f"more than {max_frames}" if seen > max_frames else str(seen)
+            raise fail(count_line, f"'Frames: {n}' but {said} frame lines follow; make them agree")
+        if frame is None or f == frame:
+            tok = line.split()
+            if len(tok) != width:
+                raise fail(ln, f"frame {f + 1}: expected {width} values (one per channel), got {len(tok)}; "
+                               "fix the line")
+            frames[0 if frame is not None else f] = _floats(fail, ln, tok, f"frame {f + 1}")
+        f += 1
+    if f != n:
+        raise fail(count_line, f"'Frames: {n}' but {f} frame lines follow; make them agree")
     return frames, float(frame_time)
 
 
-def read_bvh(path):
+def _numbered_lines(fh, path):
+    """(line number from 1, line) of the open text file ``fh``, read one at a time (a file is never held whole);
+    a line longer than :data:`_MAX_LINE` is refused before it fills the memory."""
+    for ln in itertools.count(1):
+        line = fh.readline(_MAX_LINE)
+        if not line:
+            return
+        if len(line) == _MAX_LINE and not line.endswith("\n"):
+            raise InputError(f"{path}:{ln}: a line longer than {_MAX_LINE} characters, more than a BVH file's "
+                             "lines hold; check that this is a BVH file")
+        yield ln, line
+
+
+def read_bvh(path, frame=None, max_frames=MAX_BVH_FRAMES):
     """Read a BVH file: one ROOT, tabs or spaces, LF/CRLF/CR line ends, any channel order.
 
     Parameters
     ----------
     path : str or Path
+    frame : int or None
+        Read only this frame (0-based): the other frame lines are counted, not parsed or kept, so one frame of
+        a long file costs the memory of one frame. None: every frame.
+    max_frames : int
+        A ``Frames:`` count above this raises InputError before any frame is read (:data:`MAX_BVH_FRAMES`).
 
     Returns
     -------
     Motion
-        ``frames`` is (f, c), f = the ``Frames:`` count (may be 0).
+        ``frames`` is (f, c), f = the ``Frames:`` count (may be 0), or (1, c) with ``frame``.
 
     Raises
     ------
     InputError
         One line, ``<path>:<line>: <what is wrong>; <how to fix it>``: missing file, not BVH,
         unbalanced braces, unknown channel, wrong number of values in a frame, a non-finite number,
-        ``Frames:`` not matching the frame lines, empty hierarchy.
+        ``Frames:`` not matching the frame lines, empty hierarchy, more joints or frames than the caps
+        (:data:`MAX_BVH_JOINTS`, ``max_frames``), ``frame`` not in the file.
     """
-    try:
-        text = Path(path).read_bytes().decode("utf-8-sig", errors="replace")  # -sig: drop a Windows BOM
+    try:  # -sig: drop a Windows BOM; newline=None reads LF, CRLF and CR line ends alike
+        fh = open(path, encoding="utf-8-sig", errors="replace", newline=None)
     except OSError as exc:
         raise InputError(f"{path}: cannot read the file ({exc.strerror or exc}); check the path") from None
-    lines = re.split(r"\r\n|\r|\n", text.rstrip())  # rstrip: end-of-file errors point at the last line
-    first = next((n for n, line in enumerate(lines) if line.strip()), 0)
-    if lines[first].split() != ["HIERARCHY"]:
-        raise InputError(f"{path}:{first + 1}: not a BVH file: it must start with 'HIERARCHY'; check the file")
-    h = _Hierarchy(path)
-    motion_line = h.parse(lines, first + 1)
-    frames, frame_time = _parse_frames(h.fail, lines, motion_line, sum(map(len, h.channels)))
+    with fh:
+        lines = _numbered_lines(fh, path)
+        first, line = next(_filled(lines), (1, ""))
+        if line.split() != ["HIERARCHY"]:
+            raise InputError(f"{path}:{first}: not a BVH file: it must start with 'HIERARCHY'; check the file")
+        h = _Hierarchy(path)
+        motion_line = h.parse(lines)
+        frames, frame_time = _parse_frames(h.fail, lines, motion_line, sum(map(len, h.channels)), frame, max_frames)
     return Motion(h.names, h.parents, np.array(h.offsets), h.channels, h.end_sites, frames, frame_time)
 
 
@@ -352,7 +411,7 @@ def write_bvh(path, motion):
     ValueError
         Inconsistent arrays, joints not depth-first, or names that would not read back the same.
     """
-    motion._check()
+    motion.check()
     if any(not n or n != " ".join(n.split()) or "{" in n or "}" in n for n in motion.names):
         raise ValueError("joint names must be non-empty, without braces, line breaks or repeated/edge spaces")
     values = [motion.offsets, motion.frames, [motion.frame_time], *motion.end_sites.values()]

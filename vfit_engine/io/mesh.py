@@ -13,6 +13,9 @@ from vfit_engine.io.meshdata import MAX_VERTS
 from vfit_engine.io.obj import read_obj, write_obj
 from vfit_engine.io.ply import read_ply, write_ply
 
+#: Mesh formats, by file extension: ``read_mesh`` reads obj and ply, ``write_mesh`` writes all three.
+FORMATS = ("obj", "ply", "glb")
+
 
 def _ext(path):
     return Path(path).suffix.lower()

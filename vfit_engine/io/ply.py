@@ -3,6 +3,7 @@
 Read: ``vertex`` x, y, z (any scalar type), optional red/green/blue (colours, stored as uint8) and
 s/t, u/v or texture_u/texture_v (per-vertex UVs); ``face`` with a list property ``vertex_indices``
 (or ``vertex_index``) of any size. Other properties and elements are skipped.
+Header comments are UTF-8 (they may name files), everything else ASCII.
 Write: binary little-endian by default, x y z as float64 (``double``: metres need more than
 float32's 7 digits to round-trip exactly), optional red green blue uchar, faces as ``list uchar int``.
 """
@@ -30,7 +31,7 @@ def _parse_header(data, path):
         raise InputError(f"{path}: not a PLY file (no 'ply' magic or no 'end_header')")
     nl = data.find(b"\n", end)
     body_start = len(data) if nl < 0 else nl + 1
-    header = data[:end].decode("ascii", errors="replace").splitlines()
+    header = data[:end].decode("utf-8", errors="replace").splitlines()  # comments may name files in UTF-8
     fmt = None
     elements = []  # [name, count, [(prop name, dtype) or (name, (count dtype, item dtype))]]
     for raw in header[1:]:
@@ -262,7 +263,8 @@ def write_ply(path, mesh, header=None, colors=None, binary=True, properties=None
         lines += ["property uchar red", "property uchar green", "property uchar blue"]
     lines += [f"property float {name}" for name in extra]
     lines += [f"element face {mesh.n_faces}", "property list uchar int vertex_indices", "end_header"]
-    head = ("\n".join(lines) + "\n").encode("ascii")
+    # UTF-8: a comment may name a file (jupe_été.obj); the keywords and numbers are ASCII, as PLY's readers expect
+    head = ("\n".join(lines) + "\n").encode("utf-8", "backslashreplace")  # backslash: a name not in UTF-8
     if binary:
         vfields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
         if colors is not None:

@@ -16,8 +16,8 @@ The energy ``k (theta - theta0)^2 / 2`` gives ``f_m = -(k (theta - theta0) + kd 
 with ``dtheta/dt = sum_m d theta/d x_m . v_m`` and ``v = (x - x-) / dt`` (the step's backward difference). The
 four forces sum to zero and exert no torque. :mod:`vfit_engine.sim.bending` gives ``k`` from a bending
 rigidity; :func:`eval_hinge_forces` is the callers' entry, the cloth kernel inlines
-:func:`_add_hinge_forces` over its segments. A hinge too stiff for the explicit step is solved instead as
-a compliant constraint on ``theta`` with the same gradient (:func:`_project_hinges`, the cloth kernel's
+:func:`add_hinge_forces` over its segments. A hinge too stiff for the explicit step is solved instead as
+a compliant constraint on ``theta`` with the same gradient (:func:`project_hinge_range`, the cloth kernel's
 sweeps; :func:`project_hinges` is the callers' entry).
 """
 import math
@@ -67,7 +67,7 @@ def _add(a, i, c, gx, gy, gz):
 
 
 @njit
-def _add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, h0, h1):
+def add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, h0, h1):
     """Add the forces of hinges ``h0 .. h1 - 1`` (module docstring) into ``f_out`` (n, 3), N."""
     for h in range(h0, h1):
         i0, i1, i2, i3 = hi[h, 0], hi[h, 1], hi[h, 2], hi[h, 3]
@@ -90,7 +90,7 @@ def _add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, h0, h1):
 @njit
 def _hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out):
     f_out[:] = 0.0
-    _add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, 0, hi.shape[0])
+    add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, 0, hi.shape[0])
 
 
 def eval_hinge_forces(pos, pos_prev, dt, hinge_indices, k, kd, rest_angle):
@@ -120,23 +120,23 @@ def eval_hinge_forces(pos, pos_prev, dt, hinge_indices, k, kd, rest_angle):
 
 
 #: A hinge constraint whose listing pass in a substep (the cloth kernel's second) moved a vertex by more than this
-#: (m) is solved in that substep's middle passes too; the others wait for the last (:func:`_project_hinges`).
+#: (m) is solved in that substep's middle passes too; the others wait for the last (:func:`project_hinge_range`).
 #: Measured on a resting suit (male_casualsuit06, 14.7 k hinge constraints): half are listed, the drape's cost
 #: falls by a tenth and its result, and the cantilever's at a drape's step, do not change (to 0.01 points).
 HINGE_ACTIVE = 2e-7
-#: Passes of :func:`_project_hinges`: every hinge; every hinge, listing those that moved a vertex by more than
+#: Passes of :func:`project_hinge_range`: every hinge; every hinge, listing those that moved a vertex by more than
 #: ``HINGE_ACTIVE``; the listed ones only.
 PASS_ALL, PASS_LIST, PASS_LISTED = 0, 1, 2
 
 
 @njit
-def _project_hinges(x, w, hi, h_alpha, hrest, lam, at_scale, h0, h1, active, n_active, mode):
+def project_hinge_range(x, w, hi, h_alpha, hrest, lam, at_scale, h0, h1, active, n_active, mode):
     """One Gauss-Seidel pass over hinges ``h0 .. h1 - 1`` as compliant angle constraints (XPBD, Macklin et al.
     2016): ``C = theta - theta0``, compliance ``alpha = 1 / k`` (rad^2 / (N m)), ``at = alpha at_scale``::
 
         dlam = (-C - at lam) / (sum_m w_m |g_m|^2 + at),   x_m += w_m g_m dlam
 
-    -- the implicit counterpart of :func:`_add_hinge_forces` for hinges stiffer than an explicit step can
+    -- the implicit counterpart of :func:`add_hinge_forces` for hinges stiffer than an explicit step can
     carry (stable at any step; the same static balance ``k C = lam / dt^2``). Hinges with ``h_alpha`` 0
     are explicit only and skipped.
 
@@ -177,7 +177,7 @@ def _project_hinges(x, w, hi, h_alpha, hrest, lam, at_scale, h0, h1, active, n_a
 
 
 def project_hinges(pos, inv_mass, hinge_indices, compliance, rest_angle, lam, dt):
-    """One Gauss-Seidel sweep of the hinges as compliant angle constraints (:func:`_project_hinges`).
+    """One Gauss-Seidel sweep of the hinges as compliant angle constraints (:func:`project_hinge_range`).
 
     Parameters
     ----------
@@ -193,8 +193,8 @@ def project_hinges(pos, inv_mass, hinge_indices, compliance, rest_angle, lam, dt
     dt : float, s
     """
     count = int(np.asarray(hinge_indices).reshape(-1, 4).shape[0])
-    _project_hinges(pos, np.ascontiguousarray(inv_mass, dtype=np.float64),
-                    np.ascontiguousarray(hinge_indices, dtype=np.int64).reshape(-1, 4),
-                    np.ascontiguousarray(compliance, dtype=np.float64),
-                    np.ascontiguousarray(rest_angle, dtype=np.float64), lam, 1.0 / (float(dt) * float(dt)), 0, count,
-                    np.zeros(0, np.int64), 0, PASS_ALL)
+    project_hinge_range(pos, np.ascontiguousarray(inv_mass, dtype=np.float64),
+                        np.ascontiguousarray(hinge_indices, dtype=np.int64).reshape(-1, 4),
+                        np.ascontiguousarray(compliance, dtype=np.float64),
+                        np.ascontiguousarray(rest_angle, dtype=np.float64), lam, 1.0 / (float(dt) * float(dt)), 0,
+                        count, np.zeros(0, np.int64), 0, PASS_ALL)

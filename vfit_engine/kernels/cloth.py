@@ -13,7 +13,7 @@ the same Gauss-Seidel loop, as in position based dynamics, Mueller et al. 2007):
            n . p >= n . q + min(skin_p, d + max_push)        (d its signed distance now)
        (a point inside comes out by at most ``max_push`` per substep)
     4. ``iterations`` x { every hinge too stiff for step 1 (an angle constraint of compliance 1 / k:
-       :func:`vfit_engine.kernels.bending._project_hinges`; every ``hinge_every``-th sweep and the last: the
+       :func:`vfit_engine.kernels.bending.project_hinge_range`; every ``hinge_every``-th sweep and the last: the
        first and last of these passes visit every such hinge, the second lists those that still moved a vertex
        by more than ``HINGE_ACTIVE`` and the others visit only those -- after two passes half of a resting
        garment's hinges are within a fraction of a micrometre of their balance); every distance constraint
@@ -74,10 +74,10 @@ import math
 from collections import namedtuple
 
 from vfit_engine._jit import njit, prange
-from vfit_engine.kernels.bending import PASS_ALL, PASS_LIST, PASS_LISTED, _add_hinge_forces, _project_hinges
-from vfit_engine.kernels.contact_make import _make_contacts, _point
-from vfit_engine.kernels.integrate import _advance_in_place, _move_pins
-from vfit_engine.kernels.springs import _add_spring_forces
+from vfit_engine.kernels.bending import PASS_ALL, PASS_LIST, PASS_LISTED, add_hinge_forces, project_hinge_range
+from vfit_engine.kernels.contact_make import contact_point, make_contacts
+from vfit_engine.kernels.integrate import advance_in_place, move_pins
+from vfit_engine.kernels.springs import add_spring_forces
 
 #: The cloth as the kernel sees it (fixed during a drape): inv_mass (n,) 1/kg; gravity (3,) m/s^2;
 #: explicit springs sp_i, sp_j (s,) int64, sp_rest (s,) m, sp_k (s,) N/m, sp_kd (s,) N s/m;
@@ -89,7 +89,7 @@ from vfit_engine.kernels.springs import _add_spring_forces
 #: hinges that act as explicit forces, h_i (H, 4) int64, h_k (H,) N m, h_kd (H,) N m s, h_rest (H,) rad and their
 #: segments h_seg (4,) (:mod:`.bending`); and those solved as compliant angle constraints (too stiff for the
 #: explicit step), hc_i (K, 4) int64, hc_alpha (K,) rad^2/(N m), hc_rest (K,) rad, hc_seg (4,)
-#: (:func:`vfit_engine.kernels.bending._project_hinges`). The two sets are apart so that neither pass computes
+#: (:func:`vfit_engine.kernels.bending.project_hinge_range`). The two sets are apart so that neither pass computes
 #: a hinge's angle for nothing (a drape's garment has 2-3 times as many constraint hinges as force hinges).
 ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", "sp_rest", "sp_k", "sp_kd",
                                          "c_i", "c_j", "c_lo", "c_hi", "c_alpha", "c_relax", "c_corner", "c_cos_lo",
@@ -103,7 +103,7 @@ ClothArrays = namedtuple("ClothArrays", ["inv_mass", "gravity", "sp_i", "sp_j", 
 #: spheres' (their centres'), during the substeps; both (0, 3) for a still body (nothing to carry); body_sag
 #: (V,) m: the body's extra thickness at each grid vertex (its small bumps,
 #: :func:`vfit_engine.collide.sag.convex_sag`; (0,): none) and sag_max m its largest value; ground m: the height of
-#: a still ground plane under the body (``-inf``: none; :func:`vfit_engine.kernels.contact_make._make_contacts`).
+#: a still ground plane under the body (``-inf``: none; :func:`vfit_engine.kernels.contact_make.make_contacts`).
 ContactPoints = namedtuple("ContactPoints", ["pt_v", "pt_b", "pt_skin", "spheres", "p_seg", "body_vel",
                                              "sphere_vel", "body_sag", "sag_max", "ground"])
 
@@ -282,7 +282,7 @@ def _push_point(x, inv_mass, v, b, p, nx, ny, nz, h, push, c_u, push_u, push_w):
     """Move point ``p`` onto the half-space n . p >= h (if outside it), spread over its vertices;
     returns the gap h - n . p it had (m; > 0: it was pushed). Weighs the body's velocity ``c_u[p]`` into
     ``push_u`` / ``push_w`` when ``c_u`` is not empty (:func:`_solve_contacts`)."""
-    px, py, pz = _point(x, v, b, p)
+    px, py, pz = contact_point(x, v, b, p)
     gap = h - (nx * px + ny * py + nz * pz)
     if gap <= 0.0:
         return gap
@@ -378,15 +378,15 @@ def cloth_substeps(x, xp, cl, pin_idx, pin_from, pin_to, pts, grid, prm, st, sub
     for s in range(sub_begin, sub_end):
         st.f[:] = 0.0
         for g in prange(2):
-            _add_spring_forces(x, xp, 1.0 / dt, cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd, st.f, cl.sp_seg[g],
-                               cl.sp_seg[g + 1])
-        _add_spring_forces(x, xp, 1.0 / dt, cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd, st.f, cl.sp_seg[2],
-                           cl.sp_seg[3])
+            add_spring_forces(x, xp, 1.0 / dt, cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd, st.f, cl.sp_seg[g],
+                              cl.sp_seg[g + 1])
+        add_spring_forces(x, xp, 1.0 / dt, cl.sp_i, cl.sp_j, cl.sp_rest, cl.sp_k, cl.sp_kd, st.f, cl.sp_seg[2],
+                          cl.sp_seg[3])
         for g in prange(2):
-            _add_hinge_forces(x, xp, 1.0 / dt, cl.h_i, cl.h_k, cl.h_kd, cl.h_rest, st.f, cl.h_seg[g], cl.h_seg[g + 1])
-        _add_hinge_forces(x, xp, 1.0 / dt, cl.h_i, cl.h_k, cl.h_kd, cl.h_rest, st.f, cl.h_seg[2], cl.h_seg[3])
-        _advance_in_place(x, xp, w, st.f, gravity, keep, dt * dt)
-        _move_pins(x, pin_idx, pin_from, pin_to, (s + 1.0) / sub_total)
+            add_hinge_forces(x, xp, 1.0 / dt, cl.h_i, cl.h_k, cl.h_kd, cl.h_rest, st.f, cl.h_seg[g], cl.h_seg[g + 1])
+        add_hinge_forces(x, xp, 1.0 / dt, cl.h_i, cl.h_k, cl.h_kd, cl.h_rest, st.f, cl.h_seg[2], cl.h_seg[3])
+        advance_in_place(x, xp, w, st.f, gravity, keep, dt * dt)
+        move_pins(x, pin_idx, pin_from, pin_to, (s + 1.0) / sub_total)
         for g in prange(2):
             _contacts_of_segment(x, w, pts, grid, prm, st, g)
         _contacts_of_segment(x, w, pts, grid, prm, st, 2)
@@ -418,8 +418,8 @@ def _sweep_segment(x, cl, pts, st, g, it, iterations, at_scale, hinges, hinge_ev
         # the first pass answers the substep's own motion (every hinge moves); the second tells which still do
         mode = PASS_ALL if it < hinge_every or it == iterations - 1 else PASS_LIST if it < 2 * hinge_every else \
             PASS_LISTED
-        n = _project_hinges(x, cl.inv_mass, cl.hc_i, cl.hc_alpha, cl.hc_rest, st.h_lam, at_scale, cl.hc_seg[g],
-                            cl.hc_seg[g + 1], st.h_active, counts[g, 4], mode)
+        n = project_hinge_range(x, cl.inv_mass, cl.hc_i, cl.hc_alpha, cl.hc_rest, st.h_lam, at_scale, cl.hc_seg[g],
+                                cl.hc_seg[g + 1], st.h_active, counts[g, 4], mode)
         if mode == PASS_LIST:
             counts[g, 4] = n
     n = _solve_distances(x, cl.inv_mass, cl.c_i, cl.c_j, cl.c_lo, cl.c_hi, cl.c_alpha, cl.c_relax, cl.c_corner,
@@ -440,7 +440,7 @@ def _sweep_segment(x, cl, pts, st, g, it, iterations, at_scale, hinges, hinge_ev
 @njit
 def _contacts_of_segment(x, w, pts, grid, prm, st, g):
     """Contact generation (step 3) of segment ``g``'s points; its counts in ``st.counts[g]``."""
-    st.counts[g, 0], st.counts[g, 3] = _make_contacts(
+    st.counts[g, 0], st.counts[g, 3] = make_contacts(
         x, w, pts.pt_v, pts.pt_b, pts.pt_skin, pts.spheres, grid, prm.use_grid, prm.reach, prm.max_push, prm.reuse,
         st.p_last, st.d_last, st.c_n, st.c_nq, st.c_h, st.c_list, st.c_n2, st.c_nq2, st.c_h2, pts.p_seg[g],
         pts.p_seg[g + 1], pts.body_vel, pts.sphere_vel, st.c_u, pts.body_sag, pts.sag_max, pts.ground)

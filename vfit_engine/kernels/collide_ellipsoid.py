@@ -38,7 +38,7 @@ import math
 import numpy as np
 
 from vfit_engine._jit import njit
-from vfit_engine.kernels.collide_sphere import _place
+from vfit_engine.kernels.collide_sphere import place_on_surface
 
 #: A candidate counts as inside another ellipsoid when that level is below 1 - LEVEL_TOL.
 LEVEL_TOL = 1e-12
@@ -364,7 +364,7 @@ def _project_particle(x, xp, i, c, rot, axes, bound2, friction, restitution, clo
         hit = last
         ql0, ql1, ql2 = _local(q0, q1, q2, c, rot, hit)
     n0, n1, n2 = _normal(ql0, ql1, ql2, rot, axes, hit)
-    _place(x, xp, i, q0, q1, q2, n0, n1, n2, friction[hit], restitution[hit])
+    place_on_surface(x, xp, i, q0, q1, q2, n0, n1, n2, friction[hit], restitution[hit])
     return True
 
 

@@ -44,8 +44,8 @@ import math
 import numpy as np
 
 from vfit_engine._jit import njit
-from vfit_engine.kernels.collide_mesh import _closest_on_triangle
-from vfit_engine.kernels.collide_sphere import _place, _radial_exit
+from vfit_engine.kernels.collide_mesh import closest_on_triangle
+from vfit_engine.kernels.collide_sphere import place_on_surface, radial_exit
 
 #: A point counts as inside a shape when its depth is below -INSIDE_TOL (m): a particle just
 #: projected onto a face must not count as inside that face's hull through rounding.
@@ -128,8 +128,8 @@ def _candidate(k, x0, x1, x2, normals, offsets, hull_start, sphere_centres, sphe
         pen = offsets[plane] - (n0 * x0 + n1 * x1 + n2 * x2)
         return x0 + pen * n0, x1 + pen * n1, x2 + pen * n2, n0, n1, n2
     s = k - h
-    return _radial_exit(x0, x1, x2, sphere_centres[s, 0], sphere_centres[s, 1], sphere_centres[s, 2],
-                        sphere_radii[s])
+    return radial_exit(x0, x1, x2, sphere_centres[s, 0], sphere_centres[s, 1], sphere_centres[s, 2],
+                       sphere_radii[s])
 
 
 @njit
@@ -259,7 +259,7 @@ def _project_particle(x, xp, i, normals, offsets, hull_start, hull_centres, hull
                     m2 = g2
     if best == np.inf:
         return
-    _place(x, xp, i, q0, q1, q2, m0, m1, m2, friction, restitution)
+    place_on_surface(x, xp, i, q0, q1, q2, m0, m1, m2, friction, restitution)
 
 
 @njit
@@ -319,7 +319,7 @@ def _signed_distance(points, normals, offsets, hull_start, tri_verts, tris, tri_
                 a = tris[t, 0]
                 b = tris[t, 1]
                 c = tris[t, 2]
-                q0, q1, q2, _f = _closest_on_triangle(
+                q0, q1, q2, _f = closest_on_triangle(
                     p0, p1, p2, tri_verts[a, 0], tri_verts[a, 1], tri_verts[a, 2],
                     tri_verts[b, 0], tri_verts[b, 1], tri_verts[b, 2],
                     tri_verts[c, 0], tri_verts[c, 1], tri_verts[c, 2])

@@ -62,7 +62,7 @@ BodyGrid = namedtuple("BodyGrid", ["tri_data", "tris", "tri_normals", "tri_edges
                                    "origin", "dims", "h", "margin", "cell_start", "cell_tris", "cell_tdist",
                                    "cell_sd", "cell_sd_hi"], defaults=(np.zeros(1),))
 
-# feature codes returned by _closest_on_triangle
+# feature codes returned by closest_on_triangle
 _FACE = 0  # 1, 2, 3: vertex 0, 1, 2; 4, 5, 6: edge 0 (v0 v1), 1 (v1 v2), 2 (v2 v0)
 
 #: Below this distance (m) the direction p - q is rounding noise: use the pseudo-normal.
@@ -82,7 +82,7 @@ def _closest_on_segment(px, py, pz, ax, ay, az, bx, by, bz):
 
 
 @njit
-def _closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+def closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     """Closest point q on triangle abc to p and the feature it lies on (Ericson 5.1.5).
 
     Returns ``(qx, qy, qz, feature)`` with feature 0 face, 1..3 vertex a, b, c,
@@ -159,9 +159,9 @@ def _scan_cell(px, py, pz, c, gap, tri_data, cell_start, cell_tris, cell_tdist, 
         ez = max(tri_data[t, 2] - pz, 0.0, pz - tri_data[t, 5])
         if ex * ex + ey * ey + ez * ez >= best2:
             continue
-        qx, qy, qz, f = _closest_on_triangle(px, py, pz, tri_data[t, 6], tri_data[t, 7], tri_data[t, 8],
-                                             tri_data[t, 9], tri_data[t, 10], tri_data[t, 11],
-                                             tri_data[t, 12], tri_data[t, 13], tri_data[t, 14])
+        qx, qy, qz, f = closest_on_triangle(px, py, pz, tri_data[t, 6], tri_data[t, 7], tri_data[t, 8],
+                                            tri_data[t, 9], tri_data[t, 10], tri_data[t, 11],
+                                            tri_data[t, 12], tri_data[t, 13], tri_data[t, 14])
         dd = (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
         if dd < best2:
             best2, best_t, best_f, bqx, bqy, bqz = dd, t, f, qx, qy, qz
@@ -170,7 +170,7 @@ def _scan_cell(px, py, pz, c, gap, tri_data, cell_start, cell_tris, cell_tdist, 
 
 
 @njit(inline="always")
-def _signed_result(px, py, pz, qx, qy, qz, best2, t, f, tris, tri_normals, tri_edges, edge_normals, vert_normals):
+def signed_result(px, py, pz, qx, qy, qz, best2, t, f, tris, tri_normals, tri_edges, edge_normals, vert_normals):
     """``(d, qx, qy, qz, nx, ny, nz, t)`` of point p whose closest point q lies on feature f of triangle t.
 
     The sign is that of ``(p - q) . n`` with n the feature's pseudo-normal (module docstring).
@@ -195,7 +195,7 @@ def _signed_result(px, py, pz, qx, qy, qz, best2, t, f, tris, tri_normals, tri_e
 
 
 @njit
-def _query_point(px, py, pz, grid, trust_sd, max_out, max_in, floored=False):
+def query_point(px, py, pz, grid, trust_sd, max_out, max_in, floored=False):
     """Signed distance of one point by the shell search described in the module docstring.
 
     Parameters
@@ -311,8 +311,8 @@ def _query_point(px, py, pz, grid, trust_sd, max_out, max_in, floored=False):
         ring += 1
     if best_t < 0:
         return far_in if s_hi < 0.0 and g2 == 0.0 else far_out
-    return _signed_result(px, py, pz, qx, qy, qz, best2, best_t, best_f, tris, tri_normals, tri_edges,
-                          edge_normals, vert_normals)
+    return signed_result(px, py, pz, qx, qy, qz, best2, best_t, best_f, tris, tri_normals, tri_edges,
+                         edge_normals, vert_normals)
 
 
 @njit
@@ -331,8 +331,8 @@ def closest_points(points, grid, max_out, max_in, d_out, closest_out, normal_out
         Outputs; d (m) is negative inside; tri in the grid's triangle order.
     """
     for p in range(points.shape[0]):
-        d, qx, qy, qz, nx, ny, nz, t = _query_point(points[p, 0], points[p, 1], points[p, 2], grid, True,
-                                                    max_out, max_in)
+        d, qx, qy, qz, nx, ny, nz, t = query_point(points[p, 0], points[p, 1], points[p, 2], grid, True,
+                                                   max_out, max_in)
         d_out[p] = d
         closest_out[p, 0], closest_out[p, 1], closest_out[p, 2] = qx, qy, qz
         normal_out[p, 0], normal_out[p, 1], normal_out[p, 2] = nx, ny, nz
@@ -374,7 +374,7 @@ def project_points(x, x_prev, inv_mass, grid, skin, friction, restitution, max_p
         if inv_mass[p] <= 0.0:
             continue
         px, py, pz = x[p, 0], x[p, 1], x[p, 2]
-        d, qx, qy, qz, nx, ny, nz, t = _query_point(px, py, pz, grid, True, skin, max_in)
+        d, qx, qy, qz, nx, ny, nz, t = query_point(px, py, pz, grid, True, skin, max_in)
         # the relative tolerance keeps particles already at the skin (to rounding) from re-counting
         if t < 0 or not d < skin * (1.0 - 1e-9):
             continue
@@ -424,11 +424,11 @@ def cell_centre_sd(cells, grid, cell_sd_out):
             if cell_tdist[s] > cell_tdist[a]:
                 break
             t = cell_tris[s]
-            qx, qy, qz, f = _closest_on_triangle(px, py, pz, tri_data[t, 6], tri_data[t, 7], tri_data[t, 8],
-                                                 tri_data[t, 9], tri_data[t, 10], tri_data[t, 11],
-                                                 tri_data[t, 12], tri_data[t, 13], tri_data[t, 14])
+            qx, qy, qz, f = closest_on_triangle(px, py, pz, tri_data[t, 6], tri_data[t, 7], tri_data[t, 8],
+                                                tri_data[t, 9], tri_data[t, 10], tri_data[t, 11],
+                                                tri_data[t, 12], tri_data[t, 13], tri_data[t, 14])
             dd = (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
             if dd < best2:
                 best2, best_t, best_f, bqx, bqy, bqz = dd, t, f, qx, qy, qz
-        cell_sd_out[cc] = _signed_result(px, py, pz, bqx, bqy, bqz, best2, best_t, best_f, grid.tris,
-                                         grid.tri_normals, grid.tri_edges, grid.edge_normals, grid.vert_normals)[0]
+        cell_sd_out[cc] = signed_result(px, py, pz, bqx, bqy, bqz, best2, best_t, best_f, grid.tris,
+                                        grid.tri_normals, grid.tri_edges, grid.edge_normals, grid.vert_normals)[0]

@@ -98,12 +98,12 @@ def mesh_normals(verts, tris, tri_edges, tri_normals_out, edge_normals_out, vert
             edge_normals_out[e, 0] += nx
             edge_normals_out[e, 1] += ny
             edge_normals_out[e, 2] += nz
-    _normalise_rows(edge_normals_out)
-    _normalise_rows(vert_normals_out)
+    normalise_rows(edge_normals_out)
+    normalise_rows(vert_normals_out)
 
 
 @njit
-def _normalise_rows(a):
+def normalise_rows(a):
     for r in range(a.shape[0]):
         ln = math.sqrt(a[r, 0] ** 2 + a[r, 1] ** 2 + a[r, 2] ** 2)
         if ln > 0.0:
@@ -186,15 +186,15 @@ def bin_triangles(verts, tris, origin, dims, h, reach, pair_cell_out, pair_tri_o
     n = 0
     for t in range(tris.shape[0]):
         a, b, c = tris[t, 0], tris[t, 1], tris[t, 2]
-        n = _bin_triangle(verts[a, 0], verts[a, 1], verts[a, 2], verts[b, 0], verts[b, 1], verts[b, 2],
-                          verts[c, 0], verts[c, 1], verts[c, 2], t, origin, dims, h, reach, 0.0, LEVELS / reach,
-                          column, no_stamp, no_stamp, pair_cell_out, pair_tri_out, pair_level_out, n)
+        n = bin_triangle(verts[a, 0], verts[a, 1], verts[a, 2], verts[b, 0], verts[b, 1], verts[b, 2],
+                         verts[c, 0], verts[c, 1], verts[c, 2], t, origin, dims, h, reach, 0.0, LEVELS / reach,
+                         column, no_stamp, no_stamp, pair_cell_out, pair_tri_out, pair_level_out, n)
     return n
 
 
 @njit(inline="always")
-def _bin_triangle(ax, ay, az, bx, by, bz, cx, cy, cz, t, origin, dims, h, reach, shift, per_level, column, stamp,
-                  slot, pair_cell_out, pair_tri_out, pair_level_out, n):
+def bin_triangle(ax, ay, az, bx, by, bz, cx, cy, cz, t, origin, dims, h, reach, shift, per_level, column, stamp,
+                 slot, pair_cell_out, pair_tri_out, pair_level_out, n):
     """The pairs of triangle ``t`` (corners a, b, c) for :func:`bin_triangles`, appended from pair ``n``;
     returns the new count. A pair's level is that of its distance less ``shift`` (m, at least 0), with
     ``per_level`` levels per metre.

@@ -25,8 +25,8 @@ import math
 import numpy as np
 
 from vfit_engine._jit import njit
-from vfit_engine.kernels.collide_mesh import _closest_on_triangle, _signed_result
-from vfit_engine.kernels.collide_mesh_build import LEVELS, _bin_triangle, _normalise_rows
+from vfit_engine.kernels.collide_mesh import closest_on_triangle, signed_result
+from vfit_engine.kernels.collide_mesh_build import LEVELS, bin_triangle, normalise_rows
 
 
 @njit
@@ -71,13 +71,13 @@ def bin_swept(v0, v1, tris, origin, dims, h, reach, piece, stamp, slot, pair_cel
         half_move = 0.5 * move / q * (1.0 + 1e-9) + 1e-12  # a little over: the bound stays one
         for j in range(q):
             s = (j + 0.5) / q
-            n = _bin_triangle(v0[a, 0] + s * (v1[a, 0] - v0[a, 0]), v0[a, 1] + s * (v1[a, 1] - v0[a, 1]),
-                              v0[a, 2] + s * (v1[a, 2] - v0[a, 2]), v0[b, 0] + s * (v1[b, 0] - v0[b, 0]),
-                              v0[b, 1] + s * (v1[b, 1] - v0[b, 1]), v0[b, 2] + s * (v1[b, 2] - v0[b, 2]),
-                              v0[c, 0] + s * (v1[c, 0] - v0[c, 0]), v0[c, 1] + s * (v1[c, 1] - v0[c, 1]),
-                              v0[c, 2] + s * (v1[c, 2] - v0[c, 2]), t, origin, dims, h, reach + half_move,
-                              half_move, per_level, column, stamp if q > 1 else no_stamp, slot, pair_cell_out,
-                              pair_tri_out, pair_level_out, n)
+            n = bin_triangle(v0[a, 0] + s * (v1[a, 0] - v0[a, 0]), v0[a, 1] + s * (v1[a, 1] - v0[a, 1]),
+                             v0[a, 2] + s * (v1[a, 2] - v0[a, 2]), v0[b, 0] + s * (v1[b, 0] - v0[b, 0]),
+                             v0[b, 1] + s * (v1[b, 1] - v0[b, 1]), v0[b, 2] + s * (v1[b, 2] - v0[b, 2]),
+                             v0[c, 0] + s * (v1[c, 0] - v0[c, 0]), v0[c, 1] + s * (v1[c, 1] - v0[c, 1]),
+                             v0[c, 2] + s * (v1[c, 2] - v0[c, 2]), t, origin, dims, h, reach + half_move,
+                             half_move, per_level, column, stamp if q > 1 else no_stamp, slot, pair_cell_out,
+                             pair_tri_out, pair_level_out, n)
     return n
 
 
@@ -310,8 +310,8 @@ def pose_normals(verts, tris, tri_edges, angles, tri_normals_out, edge_normals_o
             edge_normals_out[e, 0] += nx
             edge_normals_out[e, 1] += ny
             edge_normals_out[e, 2] += nz
-    _normalise_rows(edge_normals_out)
-    _normalise_rows(vert_normals_out)
+    normalise_rows(edge_normals_out)
+    normalise_rows(vert_normals_out)
 
 
 @njit
@@ -337,15 +337,15 @@ def listed_centre_sd(grid, reach, lo_out, hi_out):
             if cell_tdist[s] > 0.0 and cell_tdist[s] * cell_tdist[s] >= best2:
                 break
             t = cell_tris[s]
-            qx, qy, qz, f = _closest_on_triangle(px, py, pz, tri_data[t, 6], tri_data[t, 7], tri_data[t, 8],
-                                                 tri_data[t, 9], tri_data[t, 10], tri_data[t, 11],
-                                                 tri_data[t, 12], tri_data[t, 13], tri_data[t, 14])
+            qx, qy, qz, f = closest_on_triangle(px, py, pz, tri_data[t, 6], tri_data[t, 7], tri_data[t, 8],
+                                                tri_data[t, 9], tri_data[t, 10], tri_data[t, 11],
+                                                tri_data[t, 12], tri_data[t, 13], tri_data[t, 14])
             dd = (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
             if dd <= best2:
                 best2, best_t, best_f, bqx, bqy, bqz = dd, t, f, qx, qy, qz
         if best_t >= 0:
-            d = _signed_result(px, py, pz, bqx, bqy, bqz, best2, best_t, best_f, grid.tris, grid.tri_normals,
-                               grid.tri_edges, grid.edge_normals, grid.vert_normals)[0]
+            d = signed_result(px, py, pz, bqx, bqy, bqz, best2, best_t, best_f, grid.tris, grid.tri_normals,
+                              grid.tri_edges, grid.edge_normals, grid.vert_normals)[0]
             lo_out[cc] = d
             hi_out[cc] = d
 

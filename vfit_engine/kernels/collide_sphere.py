@@ -25,7 +25,7 @@ from vfit_engine._jit import njit
 
 
 @njit
-def _place(x, xp, i, q0, q1, q2, n0, n1, n2, friction, restitution):
+def place_on_surface(x, xp, i, q0, q1, q2, n0, n1, n2, friction, restitution):
     """Move particle ``i`` to the surface point q with outward normal n; its Verlet velocity
     ``v = x - xp`` is split into normal and tangential parts: an inward normal part is reflected
     by ``restitution`` (0: inelastic), the tangential part keeps ``1 - friction`` of itself."""
@@ -48,7 +48,7 @@ def _place(x, xp, i, q0, q1, q2, n0, n1, n2, friction, restitution):
 
 
 @njit
-def _radial_exit(x0, x1, x2, c0, c1, c2, radius):
+def radial_exit(x0, x1, x2, c0, c1, c2, radius):
     """The point of the sphere (centre c, ``radius``) straight out from its centre through x, and
     the outward normal there (+Y for a point at the centre)."""
     d0 = x0 - c0
@@ -77,9 +77,9 @@ def _project_particle_spheres(x, xp, i, centres, radii, friction, restitution):
         big_r = radii[s]
         if r2 >= big_r * big_r:
             continue
-        q0, q1, q2, n0, n1, n2 = _radial_exit(x[i, 0], x[i, 1], x[i, 2], centres[s, 0], centres[s, 1],
-                                              centres[s, 2], big_r)
-        _place(x, xp, i, q0, q1, q2, n0, n1, n2, friction[s], restitution[s])
+        q0, q1, q2, n0, n1, n2 = radial_exit(x[i, 0], x[i, 1], x[i, 2], centres[s, 0], centres[s, 1],
+                                             centres[s, 2], big_r)
+        place_on_surface(x, xp, i, q0, q1, q2, n0, n1, n2, friction[s], restitution[s])
 
 
 @njit

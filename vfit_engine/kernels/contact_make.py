@@ -8,7 +8,7 @@ arrays are those of :data:`vfit_engine.kernels.cloth.ContactPoints` and ``Contac
 import math
 
 from vfit_engine._jit import njit
-from vfit_engine.kernels.collide_mesh import _query_point
+from vfit_engine.kernels.collide_mesh import query_point
 
 #: A new contact plane turned further than this (cosine, ~8 degrees) from an earlier one, towards the
 #: point, marks a crease (:func:`_keep_crease`).
@@ -26,7 +26,7 @@ FLOOR_SLACK = 0.001
 
 
 @njit(inline="always")
-def _point(x, v, b, p):
+def contact_point(x, v, b, p):
     """Position of contact point ``p``: sum_k b_k x_{v_k}."""
     i0, i1, i2 = v[p, 0], v[p, 1], v[p, 2]
     b0, b1, b2 = b[p, 0], b[p, 1], b[p, 2]
@@ -99,9 +99,9 @@ def _sag_on_triangle(grid, body_sag, t, qx, qy, qz):
 
 
 @njit
-def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_push, reuse,
-                   p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2, p0, p1, body_vel, sphere_vel, c_u,
-                   body_sag, sag_max, ground):
+def make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_push, reuse,
+                  p_last, d_last, c_n, c_nq, c_h, c_list, c_n2, c_nq2, c_h2, p0, p1, body_vel, sphere_vel, c_u,
+                  body_sag, sag_max, ground):
     """Contact half-spaces of the points ``p0 .. p1 - 1`` that may touch the body (step 3), listed in
     ``c_list`` from index ``p0``; returns (contacts, queries). Given the body's velocities (``body_vel``,
     ``sphere_vel``: not empty), a point queried afresh keeps the body's velocity at its closest point in ``c_u``.
@@ -132,7 +132,7 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
                 free += b[p, k]
         if free < 0.5:
             continue  # (mostly) pinned: moving the few free vertices would lever them far
-        px, py, pz = _point(x, v, b, p)
+        px, py, pz = contact_point(x, v, b, p)
         mx, my, mz = px - p_last[p, 0], py - p_last[p, 1], pz - p_last[p, 2]
         moved = math.sqrt(mx * mx + my * my + mz * mz)
         band = skin[p] + reach
@@ -159,7 +159,7 @@ def _make_contacts(x, inv_mass, v, b, skin, spheres, grid, use_grid, reach, max_
             low = d_last[p] - moved
             floored = low > -math.inf
             max_in = max(-low, 0.0) + sag_max + FLOOR_SLACK if floored else math.inf
-            dg, gqx, gqy, gqz, gnx, gny, gnz, t = _query_point(px, py, pz, grid, True, query_out + sag_max,
+            dg, gqx, gqy, gqz, gnx, gny, gnz, t = query_point(px, py, pz, grid, True, query_out + sag_max,
                                                                 max_in, floored)
             if t >= 0:
                 e = em = 0.0

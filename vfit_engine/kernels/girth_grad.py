@@ -17,7 +17,7 @@ import numpy as np
 
 from vfit_engine._jit import njit
 from vfit_engine.kernels.girth import hull_ccw
-from vfit_engine.kernels.section import _is_cut, _plane_girth, section_loops, select_band_edges
+from vfit_engine.kernels.section import is_cut, plane_girth, section_loops, select_band_edges
 
 
 @njit
@@ -76,12 +76,12 @@ def girth_gradient(verts, tris, edges, tri_edges, edge_tris, h, x0, eps, cand, v
     """
     n_cand = select_band_edges(verts, edges, h - eps, h + eps, cand)  # ascending
     for i in range(2):  # a superset of each plane's cut edges, in order: scan_girths's loops and girths
-        girth_out[i] = _plane_girth(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h + (2 * i - 1) * eps,
-                                    0, 1, x0, visited, cut, pts_out, loop_start_out, loop_closed_out,
-                                    order, hull, work)
+        girth_out[i] = plane_girth(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h + (2 * i - 1) * eps,
+                                   0, 1, x0, visited, cut, pts_out, loop_start_out, loop_closed_out,
+                                   order, hull, work)
     n_cut = 0  # the edges y = h cuts, ascending, moved to the front of cand
     for c in range(n_cand):
-        if _is_cut(verts, edges, cand[c], h):
+        if is_cut(verts, edges, cand[c], h):
             cand[n_cut] = cand[c]
             n_cut += 1
     n_pts, n_loops = section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cut, h,

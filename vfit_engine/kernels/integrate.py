@@ -14,7 +14,7 @@ from vfit_engine._jit import njit
 
 
 @njit
-def _advance_in_place(x, xp, inv_mass, f, gravity, keep, dt2):
+def advance_in_place(x, xp, inv_mass, f, gravity, keep, dt2):
     """One position-Verlet step with air damping, in place (the caller computed the forces ``f``):
     x+ = x + keep (x - x-) + (w f + g) dt^2, x- = x; pinned particles (w = 0) keep their position."""
     for i in range(x.shape[0]):
@@ -27,7 +27,7 @@ def _advance_in_place(x, xp, inv_mass, f, gravity, keep, dt2):
 
 
 @njit
-def _move_pins(x, pin_idx, pin_from, pin_to, alpha):
+def move_pins(x, pin_idx, pin_from, pin_to, alpha):
     """Pinned particles at ``alpha`` of the way from ``pin_from`` to ``pin_to`` (linear over a frame)."""
     for p in range(pin_idx.shape[0]):
         i = pin_idx[p]

@@ -106,7 +106,7 @@ def select_band_edges(verts, edges, y_lo, y_hi, cand_out):
 
 
 @njit
-def _is_cut(verts, edges, e, h):
+def is_cut(verts, edges, e, h):
     return (verts[edges[e, 0], 1] >= h) != (verts[edges[e, 1], 1] >= h)
 
 
@@ -134,7 +134,7 @@ def _entry_edge(verts, tris, tri_edges, t, h):
 def _other_cut_edge(verts, edges, tri_edges, t, e, h):
     for k in range(3):
         f = tri_edges[t, k]
-        if f != e and _is_cut(verts, edges, f, h):
+        if f != e and is_cut(verts, edges, f, h):
             return f
     return -1
 
@@ -185,7 +185,7 @@ def section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h,
     n_cut = 0
     for ii in range(n_cand):
         e = cand[ii]
-        if _is_cut(verts, edges, e, h):
+        if is_cut(verts, edges, e, h):
             cut[n_cut] = e
             n_cut += 1
     n_pts = 0
@@ -279,8 +279,8 @@ def _x_range(pts, start, end):
 
 
 @njit
-def _plane_girth(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h, method, samples, x0,
-                 visited, cut, pts_out, loop_start_out, loop_closed_out, order, hull, work):
+def plane_girth(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h, method, samples, x0,
+                visited, cut, pts_out, loop_start_out, loop_closed_out, order, hull, work):
     """Torso girth at ``y = h`` from the candidate edges ``cand[:n_cand]`` (NaN without a loop)."""
     n_pts, n_loops = section_loops(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, h,
                                    visited, cut, pts_out, loop_start_out, loop_closed_out)
@@ -322,9 +322,9 @@ def scan_girths(verts, tris, edges, tri_edges, edge_tris, ys, method, samples, x
         return
     n_cand = _select_planes_edges(verts, edges, ys, cand)
     for i in range(k):
-        girth_out[i] = _plane_girth(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, ys[i], method,
-                                    samples, x0, visited, cut, pts_out, loop_start_out, loop_closed_out,
-                                    order, hull, work)
+        girth_out[i] = plane_girth(verts, tris, edges, tri_edges, edge_tris, cand, n_cand, ys[i], method,
+                                   samples, x0, visited, cut, pts_out, loop_start_out, loop_closed_out,
+                                   order, hull, work)
 
 
 @njit
@@ -345,7 +345,7 @@ def bucket_plane_edges(verts, edges, cand, n_cand, ys, plane_start, plane_edges,
     """Per plane of the ascending ``ys``, the candidate edges it cuts, in ascending edge order.
 
     Edge ``e`` (end heights ``lo <= hi``) is cut by ``y = h`` iff ``lo < h <= hi``
-    (:func:`_is_cut`), i.e. by the planes ``i0 <= i < i1`` with ``i0`` the first with
+    (:func:`is_cut`), i.e. by the planes ``i0 <= i < i1`` with ``i0`` the first with
     ``ys[i] > lo`` and ``i1`` the first with ``ys[i] > hi``. Plane ``i``'s edges are
     ``plane_edges[plane_start[i]:plane_start[i + 1]]``; ``cand`` is walked in order, so each
     list keeps ``cand``'s order and :func:`section_loops` given it finds the same cut edges in
@@ -416,9 +416,9 @@ def scan_girths_sorted(verts, tris, edges, tri_edges, edge_tris, ys, method, sam
         return
     for i in range(k):
         s = plane_start[i]
-        girth_out[i] = _plane_girth(verts, tris, edges, tri_edges, edge_tris, plane_edges[s:],
-                                    plane_start[i + 1] - s, ys[i], method, samples, x0, visited, cut,
-                                    pts_out, loop_start_out, loop_closed_out, order, hull, work)
+        girth_out[i] = plane_girth(verts, tris, edges, tri_edges, edge_tris, plane_edges[s:],
+                                   plane_start[i + 1] - s, ys[i], method, samples, x0, visited, cut,
+                                   pts_out, loop_start_out, loop_closed_out, order, hull, work)
 
 
 @njit

@@ -11,7 +11,7 @@ cloth behavior"; Baraff & Witkin 1998 for the damping along the spring.) The pai
 of forces sums to zero and acts along the spring axis.
 
 The forces are scattered spring by spring onto both ends (:func:`_spring_forces`; the cloth kernel
-:mod:`vfit_engine.kernels.cloth` runs :func:`_add_spring_forces` over its springs' segments;
+:mod:`vfit_engine.kernels.cloth` runs :func:`add_spring_forces` over its springs' segments;
 :func:`eval_spring_forces` for callers).
 """
 import math
@@ -28,11 +28,11 @@ def _spring_forces(x, xp, inv_dt, si, sj, rest, k, kd, f_out):
     ``f_out`` (n, 3) is overwritten.
     """
     f_out[:] = 0.0
-    _add_spring_forces(x, xp, inv_dt, si, sj, rest, k, kd, f_out, 0, si.shape[0])
+    add_spring_forces(x, xp, inv_dt, si, sj, rest, k, kd, f_out, 0, si.shape[0])
 
 
 @njit
-def _add_spring_forces(x, xp, inv_dt, si, sj, rest, k, kd, f_out, s0, s1):
+def add_spring_forces(x, xp, inv_dt, si, sj, rest, k, kd, f_out, s0, s1):
     """Add the forces of springs ``s0 .. s1 - 1`` onto both ends, N (``f_out`` (n, 3) accumulates)."""
     for s in range(s0, s1):
         i = si[s]

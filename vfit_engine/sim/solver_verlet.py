@@ -68,8 +68,7 @@ from vfit_engine.kernels.cloth import ClothArrays, ContactPoints, ContactState, 
 from vfit_engine.kernels.collide_mesh import BodyGrid
 from vfit_engine.kernels.springs import eval_spring_forces
 from vfit_engine.sim.bending import hinge_gradient_norms
-from vfit_engine.sim.constraints import (CONSTRAINT_ARRAYS, KIND_ANGLE, KIND_BEND, KIND_SHEAR, KIND_STRETCH,
-                                         build_constraints, corner_angle)
+from vfit_engine.sim.constraints import KIND_SHEAR, build_constraints
 from vfit_engine.sim.contact_points import contact_points
 from vfit_engine.sim.partition import halves, segment_of, segments
 from vfit_engine.sim.solver_settings import ContactSettings, VerletSettings  # noqa: F401  (the solver's API)
@@ -140,10 +139,9 @@ class SolverVerlet:
         self._x, self._xp = np.zeros((n, 3)), np.zeros((n, 3))
         self._k_pins = np.ascontiguousarray(self._rank[model.pin_indices])
         self._counts = np.zeros((3, 5), dtype=np.int64)
-        for name, values in build_constraints(model, self.settings).items():
-            setattr(self, name, values)
-        self._lam = np.zeros(self._c_i.size)
-        self._active = np.zeros(self._c_i.size, dtype=np.int64)
+        self._con = build_constraints(model, self.settings)
+        self._lam = np.zeros(self._con.count)
+        self._active = np.zeros(self._con.count, dtype=np.int64)
         self.points = points if points is not None else contact_points(np.zeros(0, np.int64), np.zeros(1, np.int64),
                                                                        model.rest_pos, surface=False)
         self._set_contacts(body, spheres)
@@ -207,14 +205,13 @@ class SolverVerlet:
         the cloth within one sweep, where the vertex order may meet the pulled constraint last.
         """
         vertices = np.asarray(vertices, dtype=np.int64)
-        if vertices.size == 0 or self._c_i.size == 0:
+        con = self._con
+        if vertices.size == 0 or con.count == 0:
             return
         n = self.model.particle_count
-        adj = sparse.coo_matrix((np.ones(self._c_i.size), (self._c_i, self._c_j)), shape=(n, n)).tocsr()
+        adj = sparse.coo_matrix((np.ones(con.count), (con.i, con.j)), shape=(n, n)).tocsr()
         depth = dijkstra(adj, directed=False, indices=vertices, unweighted=True, min_only=True)
-        order = np.argsort(np.minimum(depth[self._c_i], depth[self._c_j]), kind="stable")
-        for name in CONSTRAINT_ARRAYS:
-            setattr(self, name, np.ascontiguousarray(getattr(self, name)[order]))
+        con.reorder(np.argsort(np.minimum(depth[con.i], depth[con.j]), kind="stable"))
         self._const_dt = None
 
     def allow_stretch(self, vertices, strain):
@@ -228,14 +225,9 @@ class SolverVerlet:
         """
         inside = np.zeros(self.model.particle_count, dtype=bool)
         inside[np.asarray(vertices, dtype=np.int64)] = True
-        both = inside[self._c_i] & inside[self._c_j]
-        dist = both & ((self._c_kind == KIND_STRETCH) | (self._c_kind == KIND_BEND))
-        self._c_hi[dist] = np.maximum(self._c_hi[dist], self._c_rest[dist] * (1.0 + float(strain)))
-        ang = both & (self._c_kind == KIND_ANGLE)
+        self._con.open_bands(inside, strain)
         if self.model.hinges is not None:
             self._h_explicit |= inside[self.model.hinges.indices].any(axis=1)
-        self._t_lo[ang] = np.maximum(self._t_lo[ang] - float(strain), 0.0)
-        self._t_hi[ang] = np.minimum(self._t_hi[ang] + float(strain), math.pi)
         self._const_dt = None
 
     def admit(self, pos, vertices):
@@ -244,15 +236,7 @@ class SolverVerlet:
         and the cloth the body holds out should not fight back towards a size it cannot have."""
         inside = np.zeros(self.model.particle_count, dtype=bool)
         inside[np.asarray(vertices, dtype=np.int64)] = True
-        both = inside[self._c_i] & inside[self._c_j]
-        dist = both & (self._c_kind != KIND_ANGLE) & (self._c_kind != KIND_SHEAR)
-        length = np.linalg.norm(pos[self._c_j[dist]] - pos[self._c_i[dist]], axis=1)
-        self._c_hi[dist] = np.maximum(self._c_hi[dist], length)
-        self._c_lo[dist] = np.minimum(self._c_lo[dist], length)
-        ang = both & (self._c_kind == KIND_ANGLE)
-        angle = corner_angle(pos, np.stack([self._c_i[ang], self._c_j[ang]], axis=1), self._c_corner[ang])
-        self._t_lo[ang] = np.minimum(self._t_lo[ang], angle)
-        self._t_hi[ang] = np.maximum(self._t_hi[ang], angle)
+        self._con.admit(pos, inside)
         self._const_dt = None
 
     # -- a moving body (issue 13: added by the animation's work; vfit_engine.animate) -------------------------
@@ -396,10 +380,11 @@ class SolverVerlet:
         m = self.model
         # the explicit springs, given numbering (init_state), and both families in the kernel's
         self._explicit = (m.spring_indices[keep], m.spring_rest[keep], k[keep], kd[keep])
-        rank, corner = self._rank, self._c_corner
+        rank, con = self._rank, self._con
+        corner = con.corner
         s_order, sp_seg = segments(segment_of(self._half, *self._explicit[0].T))
         sp = keep[s_order]
-        c_order, c_seg = segments(segment_of(self._half, self._c_i, self._c_j, corner))
+        c_order, c_seg = segments(segment_of(self._half, con.i, con.j, corner))
         if m.hinges is not None:
             hi, rest = m.hinges.indices, m.hinges.rest_angle
         else:
@@ -418,10 +403,11 @@ class SolverVerlet:
         self._cloth = ClothArrays(
             self._k_inv_mass, self._gravity, arr(rank[m.spring_indices[:, 0]], sp),
             arr(rank[m.spring_indices[:, 1]], sp), arr(m.spring_rest, sp), arr(k, sp), arr(kd, sp),
-            arr(rank[self._c_i], c_order), arr(rank[self._c_j], c_order), arr(self._c_lo, c_order), arr(self._c_hi, c_order), arr(self._c_alpha, c_order),
-            arr(self._c_relax, c_order), arr(np.where(corner >= 0, rank[np.maximum(corner, 0)], -1), c_order),
-            arr(np.cos(self._t_lo), c_order), arr(np.cos(self._t_hi), c_order),
-            arr(self._c_kind == KIND_SHEAR, c_order), sp_seg, c_seg, arr(rank[hi], h_order), arr(hk, h_order),
+            arr(rank[con.i], c_order), arr(rank[con.j], c_order), arr(con.lo, c_order), arr(con.hi, c_order),
+            arr(con.alpha, c_order),
+            arr(con.relax, c_order), arr(np.where(corner >= 0, rank[np.maximum(corner, 0)], -1), c_order),
+            arr(np.cos(con.t_lo), c_order), arr(np.cos(con.t_hi), c_order),
+            arr(con.kind == KIND_SHEAR, c_order), sp_seg, c_seg, arr(rank[hi], h_order), arr(hk, h_order),
             arr(hkd, h_order), arr(rest, h_order), h_seg, arr(rank[hi], hc_order), arr(h_alpha, hc_order),
             arr(rest, hc_order), hc_seg)
         self._c_air = 1.0 - math.exp(-self.settings.air_damping * dt)
@@ -521,7 +507,7 @@ class SolverVerlet:
     def segment_sizes(self):
         """(3,) int64: constraints in the first half of the cloth, the second, and across
         (:mod:`vfit_engine.sim.partition`; the first two run on two threads)."""
-        return np.diff(segments(segment_of(self._half, self._c_i, self._c_j, self._c_corner))[1])
+        return np.diff(segments(segment_of(self._half, self._con.i, self._con.j, self._con.corner))[1])
 
     @property
     def ground(self):
@@ -531,7 +517,7 @@ class SolverVerlet:
     @property
     def constraint_count(self):
         """Number of distance constraints (stretch, shear and bend limits)."""
-        return int(self._c_i.size)
+        return self._con.count
 
     # -- diagnostics ----------------------------------------------------------------------------
     def max_stretch(self, state, spring_type=0):
