@@ -116,6 +116,29 @@ def test_customers_csv_through_the_cli_on_a_scheduler_by_address(cluster, job_di
     assert (out / "summary.json").is_file()
 
 
+def test_a_local_cluster_needs_no_port_8787():
+    """The scheduler of a local cluster serves its HTTP routes on a free port: with 8787 taken (another
+    cluster, a notebook) it neither warns nor needs it."""
+    import socket
+    import warnings
+
+    held = socket.socket()
+    try:
+        held.bind(("127.0.0.1", 8787))  # a cluster already running here holds it
+        held.listen(1)
+    except OSError:
+        pass  # something on this machine holds it already: the same case
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with local_cluster(0) as c:
+                port = c.scheduler.http_server.port
+    finally:
+        held.close()
+    assert not [w for w in caught if "already in use" in str(w.message)], [str(w.message) for w in caught]
+    assert port not in (0, 8787)
+
+
 def _worker_pids(parent):
     import psutil
 
