@@ -24,6 +24,15 @@ LOG_EVERY = 30
 COMPILE_LOG_EVERY = 10
 
 
+def cloth_kernels_cached():
+    """Whether the cloth kernel has fresh code in Numba's cache (else a first drape compiles it, for a minute or
+    more). Imports numba."""
+    from vfit_engine._jit import is_cached
+    from vfit_engine.kernels.cloth import cloth_substeps
+
+    return is_cached(cloth_substeps)
+
+
 class Progress:
     """Stage lines and the settling line of one run (module docstring)."""
 

@@ -4,7 +4,8 @@ Numba stamps a cached function with its own file only; a kernel that inlines a h
 run the old helper after an edit there. :mod:`vfit_engine._jit` stamps every kernel with the modules of its folder
 it imports too. The tests compile a tiny package in ``tmp_path`` (a kernel inlining a helper from a sibling module,
 imported in parentheses over several lines) through the real :func:`vfit_engine._jit.njit`, in fresh processes, and
-show its compile with the CLI's real :class:`cli._progress.Progress`.
+show its compile with the CLI's real :class:`vfit_cli._progress.Progress`; the commands' wiring is
+checked with a fresh kernel compiled where the engine would compile its own.
 """
 import ast
 import io
@@ -39,13 +40,17 @@ def run(x):
 '''
 
 # run the kernel once under the CLI's compile notice (stderr not a terminal); print its value, cache hits, misses
+# and whether it was cached before
 SCRIPT = '''import sys
 sys.path.insert(0, sys.argv[1])
-from cli._progress import Progress
+from vfit_cli._progress import Progress
 from pkg.kern import run
+from vfit_engine._jit import is_cached
+cached = is_cached(run)
 with Progress(True, command="vfit test").compiling():
     value = run(1.0)
-print(value, sum(run.stats.cache_hits.values()), sum(run.stats.cache_misses.values()))
+assert is_cached(run)
+print(value, sum(run.stats.cache_hits.values()), sum(run.stats.cache_misses.values()), cached)
 '''
 
 
@@ -61,13 +66,15 @@ def package(tmp_path):
 
 
 def run_kernel(root, **env):
-    """(value, cache hits, cache misses, stderr) of the kernel in a fresh process."""
+    """(value, cache hits, cache misses, stderr) of the kernel in a fresh process; checks that
+    :func:`vfit_engine._jit.is_cached` knew beforehand whether it would compile."""
     environ = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
-    environ.update(env, NUMBA_NUM_THREADS="1", PYTHONPATH=str(ROOT))
+    environ.update(env, NUMBA_NUM_THREADS="1")
     r = subprocess.run([sys.executable, "-c", SCRIPT, str(root)], capture_output=True, text=True, env=environ,
                        cwd=root, timeout=120)
     assert r.returncode == 0, r.stderr
-    value, hits, misses = r.stdout.split()
+    value, hits, misses, cached = r.stdout.split()
+    assert cached == str(hits == "1")
     return float(value), int(hits), int(misses), r.stderr
 
 
@@ -157,7 +164,7 @@ def test_the_notice_ticks_on_a_terminal_and_ends_its_line():
     a warm kernel (compiled already in this process) prints nothing."""
     import numba
 
-    from cli._progress import Progress
+    from vfit_cli._progress import Progress
 
     class Tty(io.StringIO):
         def isatty(self):
@@ -177,3 +184,37 @@ def test_the_notice_ticks_on_a_terminal_and_ends_its_line():
     with Progress(False, stream=stream, command="vfit test").compiling():
         kernel(2)
     assert stream.getvalue() == ""
+
+
+@pytest.mark.parametrize("command", ["morph", "drape"])
+def test_a_command_shows_a_compile_where_it_happens_and_a_warm_run_does_not(monkeypatch, tmp_path, command):
+    """The engine's call that compiles on a first run (Morpher, prepare_drape) stands in for one that compiles a
+    kernel new to this process, then stops the command: the notice and its total are said, even under --quiet;
+    run again (the kernel compiled), nothing is."""
+    import numba
+    from click.testing import CliRunner
+
+    import vfit_engine.body.morph
+    import vfit_engine.drape
+    from vfit_cli.main import cli
+    from vfit_engine.errors import InputError
+
+    kernel = numba.njit(lambda x: x + 1.0)
+
+    def compile_and_stop(*args, **kwargs):
+        kernel(1.0)
+        raise InputError("stopped by the test")
+
+    if command == "morph":
+        monkeypatch.setattr(vfit_engine.body.morph, "Morpher", compile_and_stop)
+        args = ["morph", "--waist", "72", "-o", str(tmp_path / "body.obj"), "--quiet"]
+    else:
+        monkeypatch.setattr(vfit_engine.drape, "prepare_drape", compile_and_stop)
+        args = ["drape", str(ROOT / "data" / "garments" / "skirt.obj"), "-o", str(tmp_path / "o"), "--quiet"]
+    cold = CliRunner().invoke(cli, args)
+    warm = CliRunner().invoke(cli, args)
+    for r in (cold, warm):
+        assert r.exit_code == 2 and "Error: stopped by the test" in r.output, r.output
+    assert f"vfit {command}: compiling the kernels, once: later runs load them from the cache" in cold.output
+    assert f"vfit {command}: compiled the kernels in " in cold.output, cold.output
+    assert "compil" not in warm.output, warm.output

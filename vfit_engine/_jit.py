@@ -163,6 +163,16 @@ if StampedLocator not in LOCATORS:
     LOCATORS.insert(0, StampedLocator)
 
 
+def is_cached(kernel):
+    """Whether ``kernel`` (a function of :func:`njit`) has code in Numba's cache that is fresh for its sources:
+    a look at its index file (milliseconds), for a caller that must know before a run whether it will compile
+    (a process pool's workers compile out of :func:`watching_compiles`' sight). False when unsure."""
+    try:  # Numba has no public call for it: its cache's index, empty when missing or stale
+        return bool(kernel._cache._cache_file._load_index())
+    except (AttributeError, OSError, ValueError, EOFError):
+        return False
+
+
 class _CompileListener(event.Listener):
     """Numba's compile events, outermost only (a kernel compiles the kernels it calls within its own compile;
     Numba compiles one function at a time, under its compiler lock)."""
