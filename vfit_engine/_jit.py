@@ -187,6 +187,8 @@ class _CompileListener(event.Listener):
             self.on_start_()
 
     def on_end(self, ev):
+        if self.depth == 0:
+            return  # a compile that started before the listener was installed
         self.depth -= 1
         if self.depth == 0:
             self.on_end_()
