@@ -22,8 +22,8 @@ the helpers it calls from other modules (:mod:`.kernels.cloth` those of :mod:`.k
 :mod:`.kernels.springs`, ...): edited there, the cached kernel would run the old helper. So every function
 compiled through :func:`njit` gets :class:`StampedLocator`: Numba's own locator (the cache stays where Numba
 puts it: the kernels' ``__pycache__``, or ``NUMBA_CACHE_DIR``, or the user-wide cache when the package is
-read-only) with the stamp of :func:`source_stamp`, a hash of the kernel's module and of every module of its
-folder it imports, directly or through another. Any edit to one of them makes the stored index stale: Numba
+read-only) with the stamp of :func:`source_stamp`, a hash of the kernel's module, of every module of its
+folder it imports, directly or through another, and of :data:`JIT_OPTIONS`. Any edit to one of them makes the stored index stale: Numba
 compiles afresh and overwrites it in place, so nothing piles up and no cache ever needs deleting. A kernel
 module therefore takes helpers and constants only from its own folder (``tests/test_numba_cache.py``).
 """
@@ -78,7 +78,7 @@ def _jit(func, signatures, options):
 @functools.lru_cache(maxsize=None)
 def source_stamp(py_file):
     """Hash of a kernel module, every module of its folder it imports (directly or through another one) and
-    this file (the options): what a cached kernel of ``py_file`` was compiled from.
+    :data:`JIT_OPTIONS`: what a cached kernel of ``py_file`` was compiled from.
 
     Parameters
     ----------
@@ -97,7 +97,7 @@ def source_stamp(py_file):
         if module not in texts:
             texts[module], imported = _module_source(module)
             todo.extend(imported)
-    digest = hashlib.sha256(Path(__file__).read_bytes())
+    digest = hashlib.sha256(repr(sorted(JIT_OPTIONS.items())).encode())
     for module in sorted(texts):
         digest.update(f"\0{module.name}\0".encode() + texts[module])
     return digest.hexdigest()
@@ -169,7 +169,7 @@ def is_cached(kernel):
     (a process pool's workers compile out of :func:`watching_compiles`' sight). False when unsure."""
     try:  # Numba has no public call for it: its cache's index, empty when missing or stale
         return bool(kernel._cache._cache_file._load_index())
-    except (AttributeError, OSError, ValueError, EOFError):
+    except Exception:  # moved internals, an unreadable index: not known to be cached, so a compile may come
         return False
 
 
