@@ -46,6 +46,7 @@ class Progress:
         self.lock = threading.RLock()  # compiles may run in a worker thread (the collider's set-up)
         self.compile_s = 0.0  # seconds spent compiling, the compile under way not counted
         self.compile_t0 = None  # when the compile under way started
+        self.compile_cut = False  # a compile failed or was interrupted (its kernel is not cached)
 
     @contextlib.contextmanager
     def compiling(self):
@@ -70,8 +71,11 @@ class Progress:
             with self.lock:
                 if self.compile_s:
                     self._end_line()
-                    click.echo(f"{self.command}: compiled the kernels in {self.compile_s:.0f} s; later runs load "
-                               "them from the cache and start at once", file=self.stream)
+                    click.echo(f"{self.command}: " + (
+                        f"compiled kernels for {self.compile_s:.0f} s, the last one cut short: the next run "
+                        "compiles it again" if self.compile_cut else
+                        f"compiled the kernels in {self.compile_s:.0f} s; later runs load them from the cache and "
+                        "start at once"), file=self.stream)
 
     def _compile_start(self):
         with self.lock:
@@ -83,8 +87,9 @@ class Progress:
                 click.echo(f"{self.command}: compiling the kernels, once: later runs load them from the cache "
                            f"({self.compile_t0 - self.t0:.1f} s)", file=self.stream)
 
-    def _compile_end(self):
+    def _compile_end(self, done):
         with self.lock:
+            self.compile_cut = not done
             self.compile_s += time.perf_counter() - self.compile_t0
             self.compile_t0 = None
             if self.tty:

@@ -218,3 +218,17 @@ def test_a_command_shows_a_compile_where_it_happens_and_a_warm_run_does_not(monk
     assert f"vfit {command}: compiling the kernels, once: later runs load them from the cache" in cold.output
     assert f"vfit {command}: compiled the kernels in " in cold.output, cold.output
     assert "compil" not in warm.output, warm.output
+
+
+def test_a_compile_cut_short_is_not_called_done():
+    """A compile that fails or is interrupted (Ctrl-C) leaves its kernel uncached: the last line says so."""
+    import numba
+
+    from vfit_cli._progress import Progress
+
+    stream = io.StringIO()
+    with Progress(True, stream=stream, command="vfit test").compiling():
+        with pytest.raises(numba.core.errors.TypingError):
+            numba.njit(lambda x: x + "a")(1)
+    assert stream.getvalue().splitlines()[-1].startswith("vfit test: compiled kernels for ")
+    assert stream.getvalue().endswith("the last one cut short: the next run compiles it again\n")

@@ -191,7 +191,8 @@ class _CompileListener(event.Listener):
             return  # a compile that started before the listener was installed
         self.depth -= 1
         if self.depth == 0:
-            self.on_end_()
+            # called while a failed compile's exception is on its way out (Numba's Event.is_failed is inverted)
+            self.on_end_(sys.exc_info()[0] is None)
 
 
 @contextlib.contextmanager
@@ -202,7 +203,8 @@ def watching_compiles(on_start, on_end):
     Parameters
     ----------
     on_start, on_end : callable
-        Called with no arguments in the compiling thread; a kernel loaded from the cache calls neither.
+        Called in the compiling thread, ``on_start()`` and ``on_end(done)``, ``done`` False when the compile
+        failed or was interrupted (Ctrl-C); a kernel loaded from the cache calls neither.
     """
     with event.install_listener("numba:compile", _CompileListener(on_start, on_end)):
         yield
