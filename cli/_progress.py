@@ -27,7 +27,7 @@ COMPILE_LOG_EVERY = 10
 def cloth_kernels_cached():
     """Whether the cloth kernel has fresh code in Numba's cache (else a first drape compiles it, for a minute or
     more). Imports numba."""
-    from vfit_engine._jit import is_cached
+    from vfit_engine.kernel_compiles import is_cached
     from vfit_engine.kernels.cloth import cloth_substeps
 
     return is_cached(cloth_substeps)
@@ -53,10 +53,10 @@ class Progress:
         """Within the context, show the kernels' compiles where they happen (module docstring); quiet or not.
 
         A compile happens only when a kernel's cached code is missing or stale
-        (:func:`vfit_engine._jit.watching_compiles`): a warm run prints nothing. Importing numba here
+        (:func:`vfit_engine.kernel_compiles.watching_compiles`): a warm run prints nothing. Importing numba here
         (not at this module's import) keeps ``vfit --help`` light.
         """
-        from vfit_engine._jit import watching_compiles
+        from vfit_engine.kernel_compiles import watching_compiles
 
         stop = threading.Event()
         ticker = threading.Thread(target=self._tick, args=(stop,), daemon=True)

@@ -45,7 +45,7 @@ SCRIPT = '''import sys
 sys.path.insert(0, sys.argv[1])
 from vfit_cli._progress import Progress
 from pkg.kern import run
-from vfit_engine._jit import is_cached
+from vfit_engine.kernel_compiles import is_cached
 cached = is_cached(run)
 with Progress(True, command="vfit test").compiling():
     value = run(1.0)
@@ -67,7 +67,7 @@ def package(tmp_path):
 
 def run_kernel(root, **env):
     """(value, cache hits, cache misses, stderr) of the kernel in a fresh process; checks that
-    :func:`vfit_engine._jit.is_cached` knew beforehand whether it would compile."""
+    :func:`vfit_engine.kernel_compiles.is_cached` knew beforehand whether it would compile."""
     environ = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     environ.update(env, NUMBA_NUM_THREADS="1")
     r = subprocess.run([sys.executable, "-c", SCRIPT, str(root)], capture_output=True, text=True, env=environ,

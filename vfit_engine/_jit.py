@@ -27,7 +27,6 @@ folder it imports, directly or through another, and of :data:`JIT_OPTIONS`. Any 
 compiles afresh and overwrites it in place, so nothing piles up and no cache ever needs deleting. A kernel
 module therefore takes helpers and constants only from its own folder (``tests/test_numba_cache.py``).
 """
-import contextlib
 import functools
 import hashlib
 import os
@@ -45,7 +44,7 @@ os.environ.setdefault("NUMBA_THREADING_LAYER_PRIORITY", "omp workqueue tbb")
 
 
 import numba  # noqa: E402  (after the wait policy)
-from numba.core import caching, event  # noqa: E402
+from numba.core import caching  # noqa: E402
 
 #: Options shared by every kernel. ``cache=True`` keeps warm starts at a few ms.
 JIT_OPTIONS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
@@ -117,14 +116,14 @@ def _modules(folder):
     return frozenset(name[:-3] for name in os.listdir(folder) if name.endswith(".py"))
 
 
-class StampedLocator(caching._CacheLocator):
+class StampedLocator:
     """Where and how fresh a kernel of :func:`njit` is cached: Numba's own locator for it (``inner``) with
-    :func:`source_stamp` as the stamp (module docstring).
+    :func:`source_stamp` as the stamp (module docstring). Numba's locator interface, by its methods.
 
     Parameters
     ----------
-    inner : numba.core.caching._CacheLocator
-        The locator Numba would use.
+    inner : object
+        The locator Numba would use (one of :data:`LOCATORS`).
     py_file : str
         The kernel's module file.
     """
@@ -156,58 +155,11 @@ class StampedLocator(caching._CacheLocator):
         return None
 
 
-#: Numba's list of cache locators, first to last (``CacheImpl`` in recent Numba, ``_CacheImpl`` in older); this
-#: module's goes first. (``NUMBA_CACHE_LOCATOR_CLASSES``, if a user sets it, replaces the list.)
-LOCATORS = getattr(caching, "CacheImpl", getattr(caching, "_CacheImpl", None))._locator_classes
+#: Numba's list of cache locators, first to last, shared by its cache kinds (its one hook for a locator of one's
+#: own); this module's goes first. (``NUMBA_CACHE_LOCATOR_CLASSES``, if a user sets it, replaces the list.)
+LOCATORS = caching.CompileResultCacheImpl._locator_classes
 if StampedLocator not in LOCATORS:
     LOCATORS.insert(0, StampedLocator)
-
-
-def is_cached(kernel):
-    """Whether ``kernel`` (a function of :func:`njit`) has code in Numba's cache that is fresh for its sources:
-    a look at its index file (milliseconds), for a caller that must know before a run whether it will compile
-    (a process pool's workers compile out of :func:`watching_compiles`' sight). False when unsure."""
-    try:  # Numba has no public call for it: its cache's index, empty when missing or stale
-        return bool(kernel._cache._cache_file._load_index())
-    except Exception:  # moved internals, an unreadable index: not known to be cached, so a compile may come
-        return False
-
-
-class _CompileListener(event.Listener):
-    """Numba's compile events, outermost only (a kernel compiles the kernels it calls within its own compile;
-    Numba compiles one function at a time, under its compiler lock)."""
-
-    def __init__(self, on_start, on_end):
-        self.on_start_, self.on_end_ = on_start, on_end
-        self.depth = 0
-
-    def on_start(self, ev):
-        self.depth += 1
-        if self.depth == 1:
-            self.on_start_()
-
-    def on_end(self, ev):
-        if self.depth == 0:
-            return  # a compile that started before the listener was installed
-        self.depth -= 1
-        if self.depth == 0:
-            # called while a failed compile's exception is on its way out (Numba's Event.is_failed is inverted)
-            self.on_end_(sys.exc_info()[0] is None)
-
-
-@contextlib.contextmanager
-def watching_compiles(on_start, on_end):
-    """Within the context, call ``on_start()`` when a kernel starts compiling (its cached code is missing or
-    stale) and ``on_end()`` when it is compiled, so that a caller can show the wait where it happens.
-
-    Parameters
-    ----------
-    on_start, on_end : callable
-        Called in the compiling thread, ``on_start()`` and ``on_end(done)``, ``done`` False when the compile
-        failed or was interrupted (Ctrl-C); a kernel loaded from the cache calls neither.
-    """
-    with event.install_listener("numba:compile", _CompileListener(on_start, on_end)):
-        yield
 
 
 prange = numba.prange
