@@ -23,7 +23,7 @@ demo: install
 	mkdir -p out
 	$(BIN)/vfit morph --waist 72 --bust 90 --hips 98 --height 168 -o out/body.obj --json out/morph.json
 	$(BIN)/vfit measure out/body.obj --json out/measure.json
-	$(BIN)/vfit drape data/garments/skirt.obj --body out/body.obj -o out/drape --every 20 --quiet --preview
+	$(BIN)/vfit drape data/garments/skirt.obj --body out/body.obj -o out/drape --every 20 --preview
 	@echo "demo written to out/: body.obj, morph.json, measure.json, drape/ (final.obj, report.json, frames)"
 	@echo "look at the draped skirt: out/drape/preview.png"
 

@@ -5,7 +5,7 @@ import click
 
 from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
 from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs
-from ._progress import Progress, kernels_cached
+from ._progress import Progress
 from .drape import body_targets, morph_options, user_files
 
 #: Files an animation writes into OUT (removed before a new run writes there).
@@ -101,8 +101,9 @@ def animate(ctx, garment, body_path, motion, speed, joint_map, travel, frames, f
                         skinning=skinning, material=material, pin=pin, units=units, preview=preview, outdir=outdir,
                         json_path=json_path, quiet=quiet, gender=gender if gender_given else None, weight=weight,
                         definition=definition, targets=targets, t_start=t_start)
+    o.progress = Progress(quiet, command="vfit animate")
     try:
-        with OutdirLock(outdir):
+        with OutdirLock(outdir), o.progress.compiling():  # a first run's compiles, shown where they happen
             code = _animate(o)
     except KeyboardInterrupt as exc:
         name, code = interruption(exc)
@@ -131,7 +132,7 @@ def _animate(o):
     from vfit_engine.garment.pins import read_pin_file
     from vfit_engine.io.mesh import write_mesh
 
-    progress = Progress(o.quiet, command="vfit animate")
+    progress = o.progress
     progress.stage(f"reading {os.path.basename(o.garment)} and the motion")
     g = load_garment(o.garment, units=o.units)
     for w in g.warnings:  # as vfit drape says them: a unit that makes the garment absurd, an ignored binding
@@ -146,8 +147,7 @@ def _animate(o):
                    f"reading the body {o.body_path}" if o.body_path else "loading the default body")
     body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or tag_gender or "female", o.definition)
     dst = DrapeSettings()
-    progress.stage("placing and pinning the garment" + ("" if kernels_cached() else
-                                                         "; the first run compiles the cloth kernels (about a minute)"))
+    progress.stage("placing and pinning the garment")
     setup = prepare_drape(g, body, model, material=o.material, pin=pins, settings=dst)
     clear_outputs(o.outdir, OUTPUT_GLOBS)
     progress.stage("draping at rest (it ends when the cloth settles)")

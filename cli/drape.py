@@ -7,7 +7,7 @@ import click
 from . import morph as _morph
 from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
 from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs
-from ._progress import Progress, kernels_cached
+from ._progress import Progress
 
 #: ``vfit morph`` options reused here (same names, types and help), so the commands agree.
 MORPH_OPTIONS = ("gender", "height", "weight") + _morph.GIRTH_OPTIONS + ("definition",)
@@ -150,8 +150,9 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
                            preview=preview, map_name=map_name, gif=gif, outdir=outdir, json_path=json_path, quiet=quiet,
                            gender=gender if gender_given else None, weight=weight, definition=definition,
                            targets=targets, t_start=t_start, cleared=False)
+    opts.progress = Progress(quiet)
     try:
-        with OutdirLock(outdir):
+        with OutdirLock(outdir), opts.progress.compiling():  # a first run's compiles, shown where they happen
             code = _drape(opts)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (the vfit group's) outside the drape and its outputs
         name, code = interruption(exc)
@@ -206,7 +207,7 @@ def _drape(o):
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.pins import read_pin_file
 
-    progress = o.progress = Progress(o.quiet)
+    progress = o.progress
     progress.stage(f"reading {os.path.basename(o.garment)}")
     g = load_garment(o.garment, units=o.units)
     sizes = g.mesh.face_sizes()
@@ -224,8 +225,7 @@ def _drape(o):
     body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or tag_gender or "female", o.definition)
     settings = DrapeSettings(refine=o.refine, ground=o.ground,
                              **({} if o.frames is None else dict(max_frames=o.frames)))
-    progress.stage("placing the garment, pinning it, building the body's collision grid"
-                   + ("" if kernels_cached() else "; the first run compiles the cloth kernels (about a minute)"))
+    progress.stage("placing the garment, pinning it, building the body's collision grid")
     setup = prepare_drape(g, body, model, material=o.material, pin=pins, transfer=o.transfer, rest=o.rest,
                           collider=o.collider, settings=settings)
     for w in setup.pins.info.get("warnings", []):

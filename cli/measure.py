@@ -3,6 +3,7 @@ import click
 
 from ._common import FILE_UNITS, EngineChoice, check_output_path, fmt_table, handle_errors, write_json
 from ._outdir import check_outputs
+from ._progress import Progress
 
 
 @click.command()
@@ -41,7 +42,8 @@ def measure(body, definition, units, json_path):
 
     model = BodyModel.load()
     verts, used_units = read_body(body, model, units)
-    meas = Measurer(model).measure(verts, definition)
+    with Progress(True, command="vfit measure").compiling():  # only a first run's compiles
+        meas = Measurer(model).measure(verts, definition)
     values = meas.cm()
     ground = float(verts[:, 1].min())
     rows = [[f"{k} (cm)", f"{v:.2f}",

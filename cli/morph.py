@@ -3,6 +3,7 @@ import click
 
 from ._common import (EngineChoice, Gender, Quantity, check_output_path, fmt_table, handle_errors, seconds_since_start,
                       write_json)
+from ._progress import Progress
 
 #: seconds after the program starts by which a failure's searches for the ranges reachable end (a search still
 #: running is cut): with cutting it, writing the error, ending the process (~0.2 s) and Python's own start
@@ -77,10 +78,12 @@ def morph(gender, height, weight, definition, search_time, output, json_path, qu
     from vfit_engine.body.model import N_BODY
     from vfit_engine.body.morph import Morpher
 
-    morpher = Morpher()
-    if search_time is None:  # the searches end FAILURE_SECONDS after the program started, however long it took
-        search_time = max(0.0, FAILURE_SECONDS - seconds_since_start(t0))
-    res = morpher.solve(targets, gender=gender, definition=definition, weight_kg=weight, search_seconds=search_time)
+    with Progress(True, command="vfit morph").compiling():  # only a first run's compiles (the table says the rest)
+        morpher = Morpher()
+        if search_time is None:  # the searches end FAILURE_SECONDS after the program started, however long it took
+            search_time = max(0.0, FAILURE_SECONDS - seconds_since_start(t0))
+        res = morpher.solve(targets, gender=gender, definition=definition, weight_kg=weight,
+                            search_seconds=search_time)
     gender_text = gender if isinstance(gender, str) else f"{gender:g} (0 female, 1 male)"
     header = [f"vfit morph: {gender_text} body, definition {definition}, units metres, Y up",
               "targets (cm/kg): " + ", ".join(f"{k}={v * 100:g}" for k, v in targets.items())

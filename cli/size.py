@@ -5,6 +5,7 @@ import click
 
 from ._common import FILE_UNITS, check_output_path, fmt_table, handle_errors, interruption, write_json
 from ._outdir import check_outputs
+from ._progress import Progress, cloth_kernels_cached
 from .drape import body_targets, morph_options, user_files
 
 #: The sizes (``vfit_engine.sizes.SIZE_NAMES``; listed here so --help imports no numpy).
@@ -96,8 +97,12 @@ def _size(o):
         if not o.quiet:
             click.echo(f"vfit size: {text} ({time.perf_counter() - o.t_start:.1f} s)", err=True)
 
-    res = try_sizes(o.garment, o.customer, sizes=o.names, workers=o.workers, progress=progress, units=o.units,
-                    material=o.material)
+    if not cloth_kernels_cached():  # the workers compile them, each its own copy, out of this process's sight
+        click.echo("vfit size: the first run compiles the cloth kernels in every process that drapes: a wait of a "
+                   "few minutes, once (later runs load them from the cache)", err=True)
+    with Progress(True, command="vfit size").compiling():  # this process's own (measuring the customer)
+        res = try_sizes(o.garment, o.customer, sizes=o.names, workers=o.workers, progress=progress, units=o.units,
+                        material=o.material)
     res["wall_s"] = round(time.perf_counter() - o.t_start, 3)
     if not o.quiet:
         _tables(res)

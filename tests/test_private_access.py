@@ -37,6 +37,15 @@ ALLOWED = {
     ("vfit_engine/sizes.py", "_processes"):
         "ProcessPoolExecutor has no public way to end its workers before Python 3.14 (terminate_workers, "
         "used when present); the fallback reads the executor's process table",
+    ("vfit_engine/_jit.py", "_locator_classes"):
+        "Numba's list of cache locators is its one hook for a locator of one's own (the stamp that keeps a kernel "
+        "fresh when a helper it inlines from another module changes); NUMBA_CACHE_LOCATOR_CLASSES (numba >= 0.68) "
+        "would replace a user's list",
+    ("vfit_engine/kernel_compiles.py", "_cache_file"):
+        "Numba has no public call to ask whether a function's cache is fresh: is_cached reads the index of a "
+        "FunctionCache of its own (False when that fails)",
+    ("vfit_engine/kernel_compiles.py", "_load_index"):
+        "the same read of Numba's cache index (is_cached)",
 }
 
 

@@ -51,6 +51,9 @@ WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_TH
 #: Dask settings of the local cluster. The workers' statistical profiler samples the running task every
 #: 10 ms from a thread of its own, which competes with the drapes when every core runs one.
 DASK_CONFIG = {"distributed.worker.profile.enabled": False}
+#: Where the local cluster's scheduler serves its HTTP routes (health, metrics; no dashboard): a free port on
+#: this machine, so that clusters started side by side never compete for Dask's default 8787.
+SCHEDULER_HTTP = "127.0.0.1:0"
 #: Seconds to wait for a scheduler given by address.
 CONNECT_TIMEOUT_S = 20
 
@@ -90,9 +93,14 @@ def _plugin():
 
 def local_cluster(n_workers):
     """A LocalCluster of ``n_workers`` processes of one thread (and one Numba thread) each, no dashboard,
-    only its errors logged (a worker's death is a retry, reported in the task's row if it matters)."""
+    only its errors logged (a worker's death is a retry, reported in the task's row if it matters).
+
+    Without a dashboard Dask's scheduler still serves its health and metrics routes over HTTP, on port 8787
+    unless told otherwise: a second cluster on the machine (another batch, a test) then warned "Port 8787 is
+    already in use". It listens on a free local port instead (``SCHEDULER_HTTP``)."""
     return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                        silence_logs=logging.ERROR, env=dict(WORKER_ENV))
+                        scheduler_kwargs={"dashboard_address": SCHEDULER_HTTP}, silence_logs=logging.ERROR,
+                        env=dict(WORKER_ENV))
 
 
 @contextlib.contextmanager

@@ -66,9 +66,9 @@ first index), and its counts in ``counts``.
 
 The helpers take plain arrays: the entry kernel unpacks the argument tuples once, since Numba
 re-reads (and reference-counts) a tuple's arrays at every use inside a called function.
-Numba's cache watches only this file: after editing a helper it inlines from another module
-(:mod:`.springs`, :mod:`.integrate`, :mod:`.contact_make`, :mod:`.collide_mesh`), delete
-``vfit_engine/kernels/__pycache__``.
+The cached kernel is stamped with the helpers it inlines from other modules too (:mod:`.bending`,
+:mod:`.springs`, :mod:`.integrate`, :mod:`.contact_make`, :mod:`.collide_mesh`): after an edit to any of
+them the next run compiles afresh (:mod:`vfit_engine._jit`).
 """
 import math
 from collections import namedtuple

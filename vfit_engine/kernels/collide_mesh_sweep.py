@@ -17,8 +17,8 @@ straight line between them. One grid answers exact queries at any time of the in
    a cell none reaches is left for an exact query.
 4. :func:`pose_records`: the triangles' records at a time of the interval, per substep.
 
-Numba's cache watches only this file: after editing the helpers inlined from
-:mod:`.collide_mesh_build`, delete ``vfit_engine/kernels/__pycache__``.
+The cached kernels are stamped with the helpers they inline from :mod:`.collide_mesh` and
+:mod:`.collide_mesh_build` too: an edit there recompiles them (:mod:`vfit_engine._jit`).
 """
 import math
 

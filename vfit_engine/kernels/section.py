@@ -15,9 +15,8 @@ On a consistently wound mesh every loop therefore has the same orientation; for 
 outward-wound closed surface (trimesh's convention) the outer loops have positive
 area in :func:`vfit_engine.kernels.girth.loop_area_centroid_xrange`.
 
-Caching caveat: :func:`scan_girths` calls kernels of ``girth.py``. Numba's on-disk
-cache checks only the caller's own source file, so after editing ``girth.py`` delete
-the cached ``section.*.nbi``/``.nbc`` files (``__pycache__`` or NUMBA_CACHE_DIR).
+:func:`scan_girths` calls kernels of ``girth.py``; its cache is stamped with that file too, so an
+edit there recompiles it (:mod:`vfit_engine._jit`).
 """
 import numpy as np
 
