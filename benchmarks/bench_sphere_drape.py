@@ -57,8 +57,8 @@ def make_drape(n, material="cotton", substeps=8, iterations=None, friction=0.5, 
     solver : SolverVerlet;  state : State;  tris : (T, 3) int64
         The cloth's fan triangles (for the surface penetration).
     """
-    from vfit_engine.garment.springs import grid_polygons
-    from vfit_engine.io.mesh import MeshData
+    from vfit_engine.sim.springs import grid_polygons
+    from vfit_engine.io.meshdata import MeshData
     from vfit_engine.sim.contact_points import contact_points
     from vfit_engine.sim.model import Model
     from vfit_engine.sim.solver_verlet import ContactSettings, SolverVerlet, VerletSettings

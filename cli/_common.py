@@ -70,9 +70,10 @@ class EngineChoice(click.Choice):
     ``EngineChoice("vfit_engine.garment.transfer:METHODS")``: the command line offers what the engine takes,
     from the one list the engine checks.
 
-    The constant's module is imported when the choices are first wanted (a value to check, ``--help`` to
-    write), not with the command's module: ``vfit --help`` and a command that never reads them load no NumPy.
-    ``first``: names the command adds before the engine's (``"auto"``); ``without``: names it does not offer.
+    The constant is read when the choices are first wanted (a value to check, ``--help`` to write), from its
+    module's source (:func:`engine_constant`): the engine imports its NumPy, SciPy and Numba at its modules'
+    tops, and no help loads them. ``first``: names the command adds before the engine's (``"auto"``);
+    ``without``: names it does not offer.
     """
 
     def __init__(self, constant: str, first: tuple = (), without: tuple = ()):
@@ -81,11 +82,30 @@ class EngineChoice(click.Choice):
 
     @functools.cached_property
     def choices(self):
-        import importlib
-
-        module, name = self.constant.split(":")
-        names = tuple(getattr(importlib.import_module(module), name))
+        names = engine_constant(*self.constant.split(":"))
         return self.first + tuple(n for n in names if n not in self.without)
+
+
+def engine_constant(module, name):
+    """The names an engine constant holds (a tuple's items, a dict's keys), read from the literal assigned to
+    it in its module's source, so the engine is not imported; a constant that is not a literal there is
+    imported (``module`` ``"vfit_engine.drape.setup"``, ``name`` ``"REST_MODES"``)."""
+    import ast
+    import importlib
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(importlib.util.find_spec("vfit_engine").origin).parent  # finds the package, runs nothing
+    source = root.joinpath(*module.split(".")[1:]).with_suffix(".py").read_text(encoding="utf-8")
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.Assign) and [t.id for t in node.targets if isinstance(t, ast.Name)] == [name]:
+            try:
+                if isinstance(node.value, ast.Dict):
+                    return tuple(ast.literal_eval(k) for k in node.value.keys)
+                return tuple(ast.literal_eval(node.value))
+            except ValueError:  # not a literal: the module's own value
+                break
+    return tuple(getattr(importlib.import_module(module), name))
 
 
 #: ``--units`` of a mesh file: ``auto`` (from its height) or a unit of ``vfit_engine.units.LENGTH_UNITS``

@@ -8,7 +8,7 @@ from ._outdir import check_outputs
 from ._progress import Progress, cloth_kernels_cached
 from .drape import body_targets, morph_options, user_files
 
-#: The sizes (``vfit_engine.fit.sizes.SIZE_NAMES``; listed here so --help imports no numpy).
+#: The sizes (``vfit_engine.sizes.SIZE_NAMES``; listed here so --help imports no numpy).
 SIZE_NAMES = ("XS", "S", "M", "L", "XL")
 #: Exit code when no size could be judged (every drape diverged or failed), as a drape that did not converge.
 NOT_JUDGED = 3
@@ -61,7 +61,7 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
     import time
 
     from vfit_engine.errors import InputError
-    from vfit_engine.fit.sizes import parse_sizes
+    from vfit_engine.sizes import parse_sizes
 
     t_start = time.perf_counter()
     names = parse_sizes(sizes_text)
@@ -91,7 +91,7 @@ def _size(o):
     """The size command's work (``o``: the options); returns the exit code."""
     import time
 
-    from vfit_engine.fit.sizes import try_sizes
+    from vfit_engine.sizes import try_sizes
 
     def progress(text):
         if not o.quiet:

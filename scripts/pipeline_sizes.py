@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
 
-from vfit_engine.fit.sizes import SIZES  # noqa: E402  (size, bust/chest, waist, hips) in cm, mid-interval
+from vfit_engine.sizes import SIZES  # noqa: E402  (size, bust/chest, waist, hips) in cm, mid-interval
 
 
 HEAD = ["garment", "size", "frames", "settled", "wall s", "surface in %", "deepest mm", "p99 strain %",

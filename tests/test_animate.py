@@ -141,7 +141,7 @@ def test_animation_glb_has_every_frame(body_model, tmp_path):
     """The GLB's animation: one morph target per frame after the first, a STEP weight track of the frame
     count, and base + target k = frame k (int16 targets: within 0.5/32767 m)."""
     from vfit_engine.io.gltf import write_animation_glb
-    from vfit_engine.io.mesh import mesh_from_faces
+    from vfit_engine.io.meshdata import mesh_from_faces
 
     quad = mesh_from_faces(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), np.array([[0, 1, 2, 3]]))
     rng = np.random.default_rng(0)

@@ -6,7 +6,7 @@ import naive_sim
 import numpy as np
 import pytest
 
-from vfit_engine.garment.springs import grid_polygons
+from vfit_engine.sim.springs import grid_polygons
 from vfit_engine.kernels.bending import eval_hinge_forces, project_hinges
 from vfit_engine.sim.bending import bending_energy, build_hinges, hinge_angles
 from vfit_engine.textile.specimen import disc

@@ -331,7 +331,8 @@ def test_measure_bad_inputs(tmp_path):
 
 def test_measure_rejects_nan_and_shuffled_topology(tmp_path, body_model):
     from vfit_engine.body.bodyio import write_body
-    from vfit_engine.io.mesh import mesh_from_faces, write_mesh
+    from vfit_engine.io.mesh import write_mesh
+    from vfit_engine.io.meshdata import mesh_from_faces
 
     verts = body_model.default_verts("female")
     write_body(tmp_path / "ok.obj", body_model, verts)

@@ -366,7 +366,7 @@ def _cylinder(radius, n=24, y=0.0):
 def test_waistband_pins_are_spread_evenly_on_a_wider_body():
     """A band pinned round a cylinder, refitted on a wider cylinder that bulges on one side only."""
     from vfit_engine.garment.pin_fit import PinAttachment, fit_pins, pinned_loops
-    from vfit_engine.io.mesh import MeshData
+    from vfit_engine.io.meshdata import MeshData
 
     ref, tris = _cylinder(0.15, n=48)
     big = ref.copy()
@@ -407,7 +407,7 @@ def test_edges_between_pins_are_lifted_clear_of_the_body():
     import trimesh
 
     from vfit_engine.garment.pin_fit import lift_chords
-    from vfit_engine.io.mesh import MeshData
+    from vfit_engine.io.meshdata import MeshData
 
     sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.1)
     body, tris = np.asarray(sphere.vertices), np.asarray(sphere.faces, dtype=np.int64)
@@ -499,8 +499,8 @@ def test_auto_spheres_lie_inside_and_cover(body_model, female):
 
 def test_yarn_strain_and_shear_are_against_the_garment_as_given():
     from vfit_engine.drape.metrics import corner_angles, shear, vertex_strain, yarn_strain
-    from vfit_engine.garment.springs import grid_polygons
-    from vfit_engine.io.mesh import MeshData
+    from vfit_engine.sim.springs import grid_polygons
+    from vfit_engine.io.meshdata import MeshData
 
     pos, fv, fo = grid_polygons(5, 4, 0.4, 0.3)  # 10 cm quads
     mesh = MeshData(pos, fo, fv)

@@ -12,7 +12,7 @@ from test_drape import GARMENTS, needs_shared
 from vfit_cli.main import cli
 from vfit_engine.fit.maps import contact_pressure, fit_maps
 from vfit_engine.fit.table import summary_line
-from vfit_engine.io.mesh import mesh_from_faces
+from vfit_engine.io.meshdata import mesh_from_faces
 from vfit_engine.sim.materials import get_material
 
 

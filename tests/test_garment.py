@@ -8,8 +8,8 @@ from vfit_engine.body.levels import body_levels
 from vfit_engine.errors import InputError
 from vfit_engine.garment.garment import choose_units, load_garment, piece_labels
 from vfit_engine.garment.mhclo import evaluate_mhclo, gender_from_tags, parse_mhclo, scale_matrix
-from vfit_engine.garment.pins import attach_to_body, attached_positions, auto_pins, closest_point_barycentric
-from vfit_engine.geometry import boundary_loops, winding_number
+from vfit_engine.garment.pins import attach_to_body, attached_positions, auto_pins
+from vfit_engine.geometry import boundary_loops, closest_point_barycentric, winding_number
 from vfit_engine.io import mesh_from_faces, write_mesh
 
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"

@@ -8,7 +8,8 @@ import glb_reader
 from vfit_engine.errors import InputError
 from vfit_engine.io import gltf_quantize
 from vfit_engine.io.gltf import ScenePart, write_animation_glb, write_scene_glb
-from vfit_engine.io.mesh import mesh_from_faces, read_mesh
+from vfit_engine.io.mesh import read_mesh
+from vfit_engine.io.meshdata import mesh_from_faces
 
 SKIRT = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
 

@@ -369,4 +369,4 @@ def test_shared_garment_obj_keeps_counts(tmp_path):
 
 
 def test_meshdata_is_exported():
-    assert MeshData.__module__ == "vfit_engine.io.mesh"
+    assert MeshData.__module__ == "vfit_engine.io.meshdata"

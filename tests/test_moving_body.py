@@ -176,7 +176,7 @@ def test_a_cloth_on_a_rising_body_is_carried(body_model):
     """A cloth patch resting on a sphere that rises 4 cm in one 1/30 s frame (as fast as a walking shin) ends
     above it, nothing inside, carried by the pushes (SolverVerlet.body_moved at every substep)."""
     from vfit_engine.collide.moving_body import MovingBodyCollider
-    from vfit_engine.io.mesh import mesh_from_faces
+    from vfit_engine.io.meshdata import mesh_from_faces
     from vfit_engine.sim.materials import resolve_material
     from vfit_engine.sim.model import Model
     from vfit_engine.sim.solver_verlet import ContactSettings, SolverVerlet, VerletSettings

@@ -7,9 +7,9 @@ import pytest
 import trimesh
 
 from vfit_engine.garment.openings import check_openings
-from vfit_engine.garment.springs import grid_polygons
+from vfit_engine.sim.springs import grid_polygons
 from vfit_engine.geometry import closed_loops
-from vfit_engine.io.mesh import mesh_from_faces
+from vfit_engine.io.meshdata import mesh_from_faces
 
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"
 

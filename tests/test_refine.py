@@ -6,7 +6,7 @@ import pytest
 from click.testing import CliRunner
 
 from vfit_engine.drape.refine import refine_setup, subdivide
-from vfit_engine.io.mesh import MeshData
+from vfit_engine.io.meshdata import MeshData
 
 DEMO_SKIRT = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
 

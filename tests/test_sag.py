@@ -112,8 +112,8 @@ def test_taut_cloth_over_a_small_bump_is_held_off_its_tip(sag):
     """A 6 cm quad pulled down over a 4 mm bump on a ball: its contact points (15 mm apart) straddle the
     bump's tip. With the sag the tip cuts less than the tolerance (0.5 mm); without, 1.8 mm."""
     from vfit_engine.drape.metrics import surface_penetration
-    from vfit_engine.garment.springs import grid_polygons
-    from vfit_engine.io.mesh import MeshData
+    from vfit_engine.sim.springs import grid_polygons
+    from vfit_engine.io.meshdata import MeshData
     from vfit_engine.sim.model import Model
     from vfit_engine.sim.contact_points import contact_points
     from vfit_engine.sim.solver_verlet import ContactSettings, SolverVerlet, VerletSettings

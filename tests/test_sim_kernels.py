@@ -587,7 +587,7 @@ def test_cloth_substep_matches_reference(iterations, split, moving, ground):
     order, as one thread would); ``moving``: the spheres move (the contact velocity relative to theirs) and
     friction holds the slip too (stick); ``ground``: a ground plane through the sheet's edges, which the
     spheres do not reach (it is the nearer collider there, and still when the spheres move)."""
-    from vfit_engine.garment.springs import grid_polygons
+    from vfit_engine.sim.springs import grid_polygons
     from vfit_engine.kernels.cloth import ClothArrays, ContactPoints, StepParams, cloth_substeps
     from vfit_engine.sim.contact_points import contact_points
     from vfit_engine.sim.partition import segment_of, segments

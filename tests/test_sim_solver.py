@@ -6,7 +6,7 @@ import trimesh
 
 from vfit_engine.collide.spheres import SphereCollider
 from vfit_engine.errors import InputError
-from vfit_engine.garment.springs import (BEND, SHEAR, STRUCTURAL, build_springs, grid_polygons, polygon_areas,
+from vfit_engine.sim.springs import (BEND, SHEAR, STRUCTURAL, build_springs, grid_polygons, polygon_areas,
                                          spring_constants, vertex_masses)
 from vfit_engine.sim.model import Model
 from vfit_engine.sim.contact_points import contact_points
@@ -205,7 +205,7 @@ def _sphere_gap(points):
 
 def test_sphere_drape_small():
     from vfit_engine.drape.metrics import surface_samples
-    from vfit_engine.io.mesh import MeshData
+    from vfit_engine.io.meshdata import MeshData
 
     model, solver, state, fv, fo = _sphere_drape(20, 120)
     assert np.all(np.isfinite(state.pos))
@@ -558,7 +558,7 @@ def _icosphere_body(radius=0.1, subdivisions=4):
 
 def test_sheet_on_sphere_limited_and_outside():
     from vfit_engine.drape.metrics import surface_penetration
-    from vfit_engine.io.mesh import MeshData
+    from vfit_engine.io.meshdata import MeshData
 
     body = _icosphere_body()
     pos, fv, fo = grid_polygons(16, 16, 0.3, 0.3)

@@ -39,7 +39,7 @@ def size(name, *rows, status="settled", message=None):
 
 
 def test_recommend_the_smallest_size_not_tight_at_a_key_region():
-    from vfit_engine.fit.sizes import recommend
+    from vfit_engine.sizes import recommend
 
     sizes = [size("XS", row("chest", "tight", ease=-2.1, strain=0.05), row("waist", "tight")),
              size("S", row("chest", "tight", ease=-0.4, strain=0.04), row("waist", "fitted")),
@@ -54,7 +54,7 @@ def test_recommend_the_smallest_size_not_tight_at_a_key_region():
 
 
 def test_recommend_every_size_tight_gives_the_largest_saying_so():
-    from vfit_engine.fit.sizes import recommend
+    from vfit_engine.sizes import recommend
 
     name, reason = recommend([size(s, row("chest", "tight", ease=-1.0 * i), row("hips", "fitted"))
                               for i, s in enumerate(("S", "M", "L"))])
@@ -63,7 +63,7 @@ def test_recommend_every_size_tight_gives_the_largest_saying_so():
 
 
 def test_recommend_ignores_tight_regions_that_are_not_key():
-    from vfit_engine.fit.sizes import recommend
+    from vfit_engine.sizes import recommend
 
     sizes = [size("XS", row("chest", "tight")),
              size("S", row("chest", "fitted"), row("left sleeve hem", "tight", key=False, strain=0.17)),
@@ -73,7 +73,7 @@ def test_recommend_ignores_tight_regions_that_are_not_key():
 
 
 def test_recommend_passes_over_sizes_without_a_verdict():
-    from vfit_engine.fit.sizes import recommend
+    from vfit_engine.sizes import recommend
 
     sizes = [size("S", status="diverged", message="simulation diverged at frame 12"),
              size("M", row("chest", "fitted"), status="not settled", message="not settled within 300 frames"),
@@ -87,7 +87,7 @@ def test_recommend_passes_over_sizes_without_a_verdict():
 
 def test_size_names_and_centres():
     from vfit_engine.errors import InputError
-    from vfit_engine.fit.sizes import SIZE_NAMES, parse_sizes, size_centres
+    from vfit_engine.sizes import SIZE_NAMES, parse_sizes, size_centres
 
     assert parse_sizes(" m,xs ,L") == ["XS", "M", "L"]
     for bad in ("S,XXL", "", ",,"):
@@ -103,7 +103,7 @@ def test_size_names_and_centres():
 
 def test_the_size_of_the_garment_as_given_is_the_centre_nearest_its_body(body_model, measurer):
     from vfit_engine.body.resolve import default_body
-    from vfit_engine.fit.sizes import garment_size
+    from vfit_engine.sizes import garment_size
 
     male = garment_size(default_body(body_model, "male"), "male", measurer)
     female = garment_size(default_body(body_model, "female"), "female", measurer)
@@ -112,7 +112,7 @@ def test_the_size_of_the_garment_as_given_is_the_centre_nearest_its_body(body_mo
 
 
 def test_a_size_body_is_the_size_centre_at_the_height_asked(body_model, measurer):
-    from vfit_engine.fit.sizes import size_body
+    from vfit_engine.sizes import size_body
 
     b = size_body(body_model, "male", "L", 1.80)
     m = measurer.measure(b.verts, names=("height", "bust", "waist", "hips"), mass=False).values
@@ -126,7 +126,7 @@ def test_a_size_body_is_the_size_centre_at_the_height_asked(body_model, measurer
 @needs_shared
 def test_grade_is_the_drape_set_up_graded_rest_and_places_on_its_size_body(body_model):
     from vfit_engine.drape import prepare_drape
-    from vfit_engine.fit.sizes import grade, size_body
+    from vfit_engine.sizes import grade, size_body
     from vfit_engine.garment.garment import load_garment
 
     g = load_garment(SUIT)
@@ -147,14 +147,14 @@ def test_grade_is_the_drape_set_up_graded_rest_and_places_on_its_size_body(body_
 
 @needs_shared
 def test_a_diverged_size_has_a_status_and_no_verdict(body_model, monkeypatch):
-    import vfit_engine.drape as drape
+    import vfit_engine.sizes as sizes
     from vfit_engine.drape import DrapeDiverged
-    from vfit_engine.fit.sizes import try_sizes
+    from vfit_engine.sizes import try_sizes
 
     def diverge(setup, settings=None, on_frame=None):
         raise DrapeDiverged("simulation diverged at frame 3 (a vertex at 99 m/s); last good frame 2", frame=3)
 
-    monkeypatch.setattr(drape, "run_drape", diverge)
+    monkeypatch.setattr(sizes, "run_drape", diverge)  # the name the size run calls
     res = try_sizes(SUIT, {"gender": "male"}, sizes=["M"], workers=1, model=body_model)
     (m,) = res["sizes"]
     assert m["status"] == "diverged" and m["fit"] is None and "diverged at frame 3" in m["message"]
@@ -209,7 +209,7 @@ def test_the_acceptance_sizes_and_the_recommendation_never_shrinks(body_model, f
     the rule decides from the sizes up to the answer, each other customer tries the size below the
     expected one (tight at a key region) and that one (not tight), the two in processes of one thread
     each (two threads per drape in this process crawl when another program takes a core)."""
-    from vfit_engine.fit.sizes import SIZE_NAMES, try_sizes
+    from vfit_engine.sizes import SIZE_NAMES, try_sizes
 
     got = {98: full_run[1]["recommended"]}
     for chest, want in ((90, "S"), (106, "L"), (114, "XL")):

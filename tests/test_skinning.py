@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from vfit_engine.body.skinning import Skinning
-from vfit_engine.garment.arap import dual_quat_to_rigid, quat_to_rotation, rigid_to_dual_quat
+from vfit_engine.rotations import dual_quat_to_rigid, quat_to_rotation, rigid_to_dual_quat
 from vfit_engine.kernels import skinning as kernels
 
 

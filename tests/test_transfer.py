@@ -7,15 +7,8 @@ from click.testing import CliRunner
 
 from vfit_engine.body.model import N_BODY
 from vfit_engine.errors import InputError
-from vfit_engine.garment.arap import (
-    MIN_COT_WEIGHT,
-    arap_rotations,
-    cotangent_weights,
-    dual_quat_to_rigid,
-    quat_to_rotation,
-    rigid_to_dual_quat,
-    rotation_to_quat,
-)
+from vfit_engine.garment.arap import MIN_COT_WEIGHT, arap_rotations, cotangent_weights
+from vfit_engine.rotations import dual_quat_to_rigid, quat_to_rotation, rigid_to_dual_quat, rotation_to_quat
 from vfit_engine.garment.transfer import BodyFrames, blend_dqs, blend_lbs, transfer
 
 GARMENTS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "garments"

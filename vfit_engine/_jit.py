@@ -2,8 +2,8 @@
 
 Kernels import ``njit`` from here so every kernel compiles with the same
 settings and caches to disk. Importing this module imports numba (~0.45 s), so
-only kernel modules may import it, and only library code that really runs a
-kernel imports those modules: ``vfit --help`` must never reach this file.
+only kernel modules may import it, and the CLI imports the engine inside its
+commands: ``vfit --help`` must never reach this file.
 
 fastmath stays off: girths are compared to 0.1 mm and cloth runs are checked
 for determinism, and fastmath's reassociation changes results between builds.

@@ -7,7 +7,8 @@ the garment over it; a moving body (``body_frames``, an animated fitting) is dra
 not move keeps its exact pixels and nothing flickers. A counter and a progress line under the
 picture say where the animation is.
 
-Importing this module is cheap; numba and Pillow are imported when an animation is made.
+Importing this module imports numba and Pillow (through :mod:`vfit_engine.preview`); the CLI imports it
+inside its commands, so ``vfit --help`` does not.
 """
 from __future__ import annotations
 
@@ -15,9 +16,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from vfit_engine import preview, preview_text
 from vfit_engine.errors import InputError
+from vfit_engine.io.atomic import atomic_write
 
 #: Most frames in one GIF: an animation of a drape saved every few frames has tens to hundreds;
 #: Pillow holds every frame in memory until it writes the file.
@@ -76,8 +79,6 @@ def write_gif(path, body_verts, body_tris, frames, garment_tris, values=None, *,
         A one-line message for bad input (no frames, frames of different sizes, NaN, ...) or an
         unwritable path; no file is left behind.
     """
-    from vfit_engine.io.atomic import atomic_write
-
     fps = _check_fps(fps)
     pictures = render_frames(body_verts, body_tris, frames, garment_tris, values, size=size, view=view,
                              label=label, unit=unit, vmin=vmin, vmax=vmax, cmap=cmap, title=title,
@@ -223,8 +224,6 @@ def _palette(pictures, bar=None):
     the bar is small, and without them median cut leaves it (and the garment's colours) in a
     dozen bands.
     """
-    from PIL import Image
-
     stack = np.concatenate(pictures, axis=0)
     if bar is not None and bar.size:
         reps = max(1, stack.shape[0] * stack.shape[1] // (10 * bar.shape[0] * bar.shape[1]))
@@ -240,8 +239,6 @@ def _palette(pictures, bar=None):
 
 def _quantize(picture, palette):
     """The picture in the shared palette; no dithering, so an unchanged pixel keeps its index."""
-    from PIL import Image
-
     return Image.fromarray(picture, "RGB").quantize(palette=palette, dither=Image.Dither.NONE)
 
 

@@ -1,7 +1,8 @@
 """Mesh geometry shared by the body, garment and simulation layers.
 
-Vertex normals of triangle or polygon meshes, boundary loops of a mesh, and the winding number
-of a closed polygon around a point. The collider's angle-weighted pseudo-normals (for signed
+Vertex normals of triangle or polygon meshes, boundary loops of a mesh, the winding number
+of a closed polygon around a point, and the closest point on a triangle. Rotations are in
+:mod:`vfit_engine.rotations`. The collider's angle-weighted pseudo-normals (for signed
 distances) are a different thing and live with it, in :mod:`vfit_engine.collide.body_mesh`.
 """
 from __future__ import annotations
@@ -22,7 +23,7 @@ def vertex_normals(verts, faces, face_offsets=None, outward=False):
     faces : (T, 3) int64 triangles, or (k,) int64 flat polygon corners with ``face_offsets``
     face_offsets : (m + 1,) int64 or None
         CSR offsets of the polygons in ``faces`` (the layout of
-        :class:`vfit_engine.io.mesh.MeshData`); None when ``faces`` are triangles.
+        :class:`vfit_engine.io.meshdata.MeshData`); None when ``faces`` are triangles.
     outward : bool
         Flip all normals if, summed over the vertices the faces use, they point towards those
         vertices' centroid: for a closed surface whose winding is not known (the body).
@@ -141,3 +142,47 @@ def winding_number(points_xz, center_xz):
     step = np.diff(np.concatenate([ang, ang[:1]]))
     step = (step + np.pi) % (2 * np.pi) - np.pi
     return float(step.sum() / (2 * np.pi))
+
+
+def closest_point_barycentric(p, a, b, c):
+    """Barycentric coordinates (k, 3) of the closest point on triangles (a, b, c) to points p.
+
+    All inputs (k, 3) float64. Region tests after Ericson, Real-Time Collision Detection (2005) 5.1.5.
+    """
+    ab, ac, ap = b - a, c - a, p - a
+    d1 = np.einsum("ij,ij->i", ab, ap)
+    d2 = np.einsum("ij,ij->i", ac, ap)
+    bp = p - b
+    d3 = np.einsum("ij,ij->i", ab, bp)
+    d4 = np.einsum("ij,ij->i", ac, bp)
+    cp = p - c
+    d5 = np.einsum("ij,ij->i", ab, cp)
+    d6 = np.einsum("ij,ij->i", ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    out = np.empty((p.shape[0], 3))
+    denom = va + vb + vc
+    denom = np.where(denom != 0, denom, 1.0)
+    out[:, 1] = vb / denom
+    out[:, 2] = vc / denom
+    out[:, 0] = 1.0 - out[:, 1] - out[:, 2]
+
+    def put(mask, w):
+        out[mask] = w[mask] if w.ndim == 2 else w
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # edge regions (checked before vertex regions, which override them)
+        m_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
+        t = np.clip((d4 - d3) / ((d4 - d3) + (d5 - d6)), 0, 1)
+        put(m_bc, np.stack([np.zeros_like(t), 1 - t, t], 1))
+        m_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+        t = np.clip(d2 / (d2 - d6), 0, 1)
+        put(m_ac, np.stack([1 - t, np.zeros_like(t), t], 1))
+        m_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+        t = np.clip(d1 / (d1 - d3), 0, 1)
+        put(m_ab, np.stack([1 - t, t, np.zeros_like(t)], 1))
+    put((d6 >= 0) & (d5 <= d6), np.array([0.0, 0.0, 1.0]))
+    put((d3 >= 0) & (d4 <= d3), np.array([0.0, 1.0, 0.0]))
+    put((d1 <= 0) & (d2 <= 0), np.array([1.0, 0.0, 0.0]))
+    return out

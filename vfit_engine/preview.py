@@ -16,7 +16,8 @@ draws frames of a drape with the same pieces, this module's drawing API: :func:`
 :func:`check_verts`, :func:`garment_colours` (the checks), :func:`fit_framing`, :func:`shading_normals`,
 :func:`draw_meshes`, :func:`resolve_samples`, :func:`to_uint8` and :func:`decorate` (the drawing).
 
-Importing this module is cheap; numba and Pillow are imported when a picture is made.
+Importing this module imports numba (the rasterizer's kernels) and Pillow; the CLI imports it inside its
+commands, so ``vfit --help`` does not.
 """
 from __future__ import annotations
 
@@ -24,9 +25,13 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+from PIL import Image
 
 from vfit_engine import preview_text as text
 from vfit_engine.errors import InputError
+from vfit_engine.geometry import vertex_normals
+from vfit_engine.io.atomic import atomic_write
+from vfit_engine.kernels.raster import downsample, rasterize
 from vfit_engine.preview_text import TEXT_RGB  # noqa: F401  (part of the colour scheme's names)
 
 #: Colour of the body (sRGB in [0, 1]).
@@ -136,10 +141,6 @@ def render_views(path, body_verts, body_tris, garment_verts, garment_tris, value
         A one-line message for bad input (shapes, NaN, indices out of range, an empty garment,
         unknown names) or an unwritable path.
     """
-    from PIL import Image
-
-    from vfit_engine.io.atomic import atomic_write
-
     image = render_image(body_verts, body_tris, garment_verts, garment_tris, values, label=label,
                          unit=unit, vmin=vmin, vmax=vmax, cmap=cmap, views=views, size=size,
                          title=title, zoom=zoom, shading=shading)
@@ -416,8 +417,6 @@ def fit_framing(verts_list, rotations, zoom, panel_w, panel_h):
 def shading_normals(verts, tris, shading):
     """Vertex normals (gouraud) or face normals (flat) of a mesh."""
     if shading == "gouraud":
-        from vfit_engine.geometry import vertex_normals
-
         return vertex_normals(verts, tris)
     return _face_normals(verts, tris)
 
@@ -430,8 +429,6 @@ def draw_meshes(meshes, framing, view, ss, shading, image, depth):
     frame's garment over it. Returns the rows and columns ``(r0, r1, c0, c1)`` (end exclusive,
     within the buffers) the meshes' vertices span: all that the drawing can have changed.
     """
-    from vfit_engine.kernels.raster import rasterize
-
     rot, f = framing.rotations[view], framing.scale * ss
     light = rot.T @ _LIGHT  # n_view . light = n . (rot^T light)
     h, w = depth.shape
@@ -454,8 +451,6 @@ def draw_meshes(meshes, framing, view, ss, shading, image, depth):
 
 def resolve_samples(image, depth, ss, panel_out):
     """Average the samples into the (panel_h, panel_w, 3) panel; empty samples are background."""
-    from vfit_engine.kernels.raster import downsample
-
     downsample(image, depth, np.asarray(BACKGROUND_RGB, dtype=np.float64), ss, panel_out)
 
 
@@ -466,8 +461,6 @@ def to_uint8(rgb):
 
 def decorate(canvas, lay, captions, title, bar, cmap, lo, hi):
     """The (h, w, 3) uint8 picture: the float canvas with the bar's gradient, texts and the bar's frame."""
-    from PIL import Image
-
     if bar is not None:
         x0, y0, x1, y1 = lay["bar_box"]
         rows = hi - (np.arange(y1 - y0) + 0.5) / (y1 - y0) * (hi - lo)

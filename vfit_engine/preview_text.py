@@ -3,12 +3,13 @@
 Text is drawn with Pillow's default font (scalable with FreeType, else its small bitmap font
 enlarged), so a picture needs no font file and looks the same on every machine. Everything is
 sized from the picture's height, so captions stay legible from 300 x 150 to 8000 x 8000 pixels.
-Pillow is imported when a picture is made.
 """
 from __future__ import annotations
 
 import functools
 import math
+
+from PIL import Image, ImageDraw, ImageFont
 
 from vfit_engine.errors import InputError
 
@@ -50,8 +51,6 @@ def layout(width, height, n_views, title, bar, footer=False):
 @functools.lru_cache(maxsize=8)
 def font(px):
     """(font, enlargement): Pillow's scalable default font, else its small bitmap font enlarged."""
-    from PIL import ImageFont
-
     try:
         return ImageFont.load_default(size=px), 1
     except (TypeError, ImportError, OSError):  # Pillow < 10.1, or a build without FreeType
@@ -60,8 +59,6 @@ def font(px):
 
 def text_mask(text, px):
     """The text as a white-on-black 'L' image, one line high (same height for every text)."""
-    from PIL import Image, ImageDraw
-
     face, k = font(px)
     if hasattr(face, "getmetrics"):
         ascent, descent = face.getmetrics()
@@ -138,8 +135,6 @@ def draw_bar_frame(img, box, bar, fs, lo, hi, end_rgb):
 
     ``end_rgb``: the 0-255 colours of the bar's low and high ends (for the triangles).
     """
-    from PIL import ImageDraw
-
     x0, y0, x1, y1 = box
     draw, colour = ImageDraw.Draw(img), ink()
     draw.rectangle((x0 - 1, y0 - 1, x1, y1), outline=colour)

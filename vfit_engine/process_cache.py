@@ -1,6 +1,6 @@
 """What a worker process keeps between its jobs: the body model, the bodies it built, their fit tables.
 
-A size run (:mod:`vfit_engine.fit.sizes`) and a batch (:mod:`vfit_engine.batch`) send many drapes to a few
+A size run (:mod:`vfit_engine.sizes`) and a batch (:mod:`vfit_engine.batch`) send many drapes to a few
 long-lived processes. Loading the body model (~0.5 s), solving a body to measurements (0.3-1 s) and
 slicing a body's girth planes for the fit table (~0.2 s) are the same for every drape on that body, so
 each process does them once and keeps them here::
@@ -17,9 +17,17 @@ from __future__ import annotations
 
 import collections
 import hashlib
+import os
 import threading
 
 import numpy as np
+import scipy.optimize  # noqa: F401  (warm_up: a body's solve)
+
+from vfit_engine.body.model import BodyModel
+from vfit_engine.body.morph import Morpher  # noqa: F401  (warm_up: loaded with this module, once per process)
+from vfit_engine.drape import prepare_drape, run_drape  # noqa: F401
+from vfit_engine.fit.table import FitTable
+from vfit_engine.kernels import cloth  # noqa: F401
 
 #: Bodies (and their fit tables) kept per process, most recently used first.
 MAX_BODIES = 8
@@ -32,8 +40,6 @@ _TABLES = collections.OrderedDict()
 
 def model():
     """The body model, loaded once per process."""
-    from vfit_engine.body.model import BodyModel
-
     with _LOCK:
         if not _MODEL:
             _MODEL.append(BodyModel.load())
@@ -60,8 +66,6 @@ def body(key, build):
 
 def fit_table(model, body):
     """The body's FitTable (:class:`vfit_engine.fit.table.FitTable`: its girth planes, built once per body)."""
-    from vfit_engine.fit.table import FitTable
-
     key = hashlib.sha1(np.ascontiguousarray(body.verts).tobytes()).hexdigest()
     return _kept(_TABLES, key, lambda: FitTable(body, model))[0]
 
@@ -69,13 +73,5 @@ def fit_table(model, body):
 def warm_up():
     """Load what every drape needs in a fresh process: the body model, the drape's modules, the cloth
     kernels from Numba's cache (so the first job's timings are the drape's, not the start's)."""
-    import os
-
-    model()
-    import scipy.optimize  # noqa: F401  (a body's solve)
-
-    from vfit_engine.body.morph import Morpher  # noqa: F401
-    from vfit_engine.drape import prepare_drape, run_drape  # noqa: F401
-    from vfit_engine.fit.table import fit_table  # noqa: F401
-    from vfit_engine.kernels import cloth  # noqa: F401
+    model()  # the modules a drape needs are this module's imports
     return os.getpid()

@@ -4,7 +4,14 @@
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
+from scipy.spatial import cKDTree
 
+from vfit_engine.body.segment import PARTS, bone_positions, seed_bones
+from vfit_engine.collide.auto_spheres import fit_spheres
+from vfit_engine.collide.body_mesh import MeshCollider
+from vfit_engine.collide.bone_spheres import MIN_BONE_LENGTH, fit_bone_spheres
+from vfit_engine.collide.moving_body import MovingBodyCollider
 from vfit_engine.errors import InputError
 
 #: Body parts (:data:`vfit_engine.body.segment.PARTS`) of many small triangles: only their triangles near the
@@ -21,8 +28,6 @@ def near_triangles(body_verts, tris, cloth, near, parts=None):
     under a skirt as its wearer sits down); where a surface is cut open its inside and outside are not told
     apart, and cloth there would be pushed the wrong way. The detail parts (head, hands, feet: 70 % of the
     triangles) keep only their near triangles, cut where they are ``near`` from the cloth."""
-    from scipy.spatial import cKDTree
-
     d, _ = cKDTree(cloth).query(body_verts, distance_upper_bound=near)
     return _whole_parts(np.isfinite(d)[tris].any(axis=1), tris, parts)
 
@@ -31,7 +36,6 @@ def _whole_parts(close, tris, parts):
     """``close`` triangles ((t,) bool) and every triangle of a part not in :data:`DETAIL_PARTS` that has one."""
     if parts is None:
         return close
-    from vfit_engine.body.segment import PARTS
 
     part = np.asarray(parts)[tris[:, 0]]
     whole = np.setdiff1d(np.unique(part[close]), [PARTS.index(p) for p in DETAIL_PARTS])
@@ -47,8 +51,6 @@ def reach_triangles(bodies, tris, rest_cloth, near, parts=None):
     a skirt's hem as its wearer sits down, or a hand laid on the lap, is far from the garment at rest. Parts
     are then taken as :func:`near_triangles` takes them (whole, except the detail parts).
     """
-    from scipy.spatial import cKDTree
-
     d, _ = cKDTree(rest_cloth).query(bodies[0], distance_upper_bound=near)
     covered = np.flatnonzero(np.isfinite(d))
     close = np.zeros(bodies.shape[1], bool)
@@ -65,8 +67,6 @@ class MovingBody:
     the sphere colliders along the bones, and the whole body at each frame's end that judges it."""
 
     def __init__(self, setup, model, bodies, mats, rest_pos, st, dst):
-        from vfit_engine.collide.moving_body import MovingBodyCollider
-
         self.bodies, self.st = bodies, st
         self.tris = model.body_tris
         self.time = 0.0
@@ -158,9 +158,6 @@ class BoneSpheres:
 
     @staticmethod
     def _along_bones(body, model, dst):
-        from vfit_engine.body.segment import bone_positions, seed_bones
-        from vfit_engine.collide.bone_spheres import MIN_BONE_LENGTH, fit_bone_spheres
-
         if not body.has_helpers:
             raise InputError("the bone-spheres collider needs the body's helper vertices (its skeleton): build the "
                              "body from measurements instead of reading it from a file")
@@ -174,12 +171,6 @@ class BoneSpheres:
 
     @staticmethod
     def _medial(body, model):
-        from scipy import sparse
-        from scipy.spatial import cKDTree
-
-        from vfit_engine.collide.auto_spheres import fit_spheres
-        from vfit_engine.collide.body_mesh import MeshCollider
-
         surface = body.surface
         centres, radii = fit_spheres(surface, model.body_tris, MeshCollider(surface, model.body_tris))
         bone, vertex, weight = model.skin

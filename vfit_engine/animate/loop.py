@@ -29,7 +29,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vfit_engine.animate.colliders import MovingBody
+from vfit_engine.animate.motion import Poser
+from vfit_engine.body.self_contact import ArmContact
+from vfit_engine.drape.loop import DrapeDiverged, build_solver, run_drape
+from vfit_engine.drape.metrics import surface_penetration, yarn_strain
+from vfit_engine.drape.settings import DrapeSettings
 from vfit_engine.errors import InputError
+from vfit_engine.fit.maps import CONTACT_MM, contact_pressure
 
 #: Colliders of an animation: the exact body near the garment, or spheres fitted to the body that follow its
 #: bones (along the bones, or the medial cover).
@@ -196,10 +202,6 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     DrapeDiverged
         The cloth blew up (NaN or runaway speed); the last good frame is kept in the exception.
     """
-    from vfit_engine.animate.motion import Poser
-    from vfit_engine.drape.loop import DrapeDiverged, build_solver
-    from vfit_engine.drape.settings import DrapeSettings
-
     st = settings or AnimateSettings()
     dst = drape_settings or DrapeSettings()
     timings = dict(setup=0.0, posing=0.0, collision=0.0, cloth=0.0, figures=0.0)
@@ -210,7 +212,6 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     t1 = time.perf_counter()
     bodies, pin_pos, mats, travel = pose_frames(poser, clip, st)
     if setup.body_parts is not None:  # hands laid on the body rest on its skin (skinning lets them sink in)
-        from vfit_engine.body.self_contact import ArmContact
 
         arms = ArmContact(bodies[0], model.body_tris, setup.body_parts)
         for k in range(len(bodies)):
@@ -325,9 +326,6 @@ def frame_figures(setup, body, pos):
     the yarn strain against the garment as given (``p99_strain``, ``max_strain``), the largest contact pressure
     (``pressure_max_kpa``, :func:`vfit_engine.fit.maps.contact_pressure`) and how far the cloth moved since
     the last frame (``max_step_mm``, ``share_moving``)."""
-    from vfit_engine.drape.metrics import surface_penetration, yarn_strain
-    from vfit_engine.fit.maps import CONTACT_MM, contact_pressure
-
     mesh = setup.garment.mesh
     judge = body.whole
     judge.settle_bounds()  # exact centre distances now: points clear of the body are dismissed
@@ -356,8 +354,6 @@ def animate_garment(setup, clip, model, settings=None, drape_settings=None, on_d
     -------
     (DrapeResult, AnimationResult)
     """
-    from vfit_engine.drape.loop import run_drape
-
     # no ground, at rest or in motion: the motion is simulated in the body's own frame (pose_frames), where a
     # walk's stance foot slides back over the ground as on a treadmill. A still ground trapped a long hem under the
     # feet (a maxi skirt walking 30 frames: p99 strain 152 %), and so did the hem it had pooled on at rest without

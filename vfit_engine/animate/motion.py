@@ -34,13 +34,23 @@ they follow the body as its surface does.
 """
 from __future__ import annotations
 
+import copy
 import json
 import os
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
+from scipy.spatial.transform import Rotation
 
+from vfit_engine.body.gait import walk_motion
+from vfit_engine.body.model import N_BODY
+from vfit_engine.body.pose import body_joints, bone_rotations, file_axes, joint_naming, rig_order, skinning_for
+from vfit_engine.body.segment import bone_positions
+from vfit_engine.body.skinning import Skinning
+from vfit_engine.collide.body_mesh import MeshCollider
 from vfit_engine.errors import InputError
+from vfit_engine.io.bvh import read_bvh
 
 #: CMU motion-capture skeletons (the BVH conversions of the CMU database, and the MotionBuilder-friendly
 #: ``cmu_mb`` names) -> the default rig's bones. A joint carries the rotation of the bone that starts at it:
@@ -93,8 +103,6 @@ class Clip:
     def sample(self, t, blend=1.0):
         """((b, 3, 3) local rotations, (3,) m root translation) at ``t`` s, turned ``blend`` (0..1) of the way
         from the rest pose."""
-        from scipy.spatial.transform import Rotation
-
         f = len(self.rotations)
         x = max(float(t), 0.0) / self.frame_time
         if self.looping:
@@ -148,10 +156,6 @@ def load_clip(model, source, speed=1.3, fps=30.0, travel=False, joint_map=None, 
     InputError
         A file that does not exist, does not read as BVH, or names too few of the rig's bones.
     """
-    from vfit_engine.body.gait import walk_motion
-    from vfit_engine.body.pose import file_axes
-    from vfit_engine.io.bvh import read_bvh
-
     if source == "walk":
         motion = walk_motion(model, speed=speed, fps=fps)
         rot = np.stack([_rig_rotations(model, motion, k, np.eye(3)) for k in range(len(motion.frames))])
@@ -184,15 +188,11 @@ def load_clip(model, source, speed=1.3, fps=30.0, travel=False, joint_map=None, 
 
 def _rig_rotations(model, motion, frame, axes):
     """(b, 3, 3) the rig's local rotations in vfit's axes from ``motion``'s joints named as rig bones."""
-    from vfit_engine.body.pose import bone_rotations
-
     return bone_rotations(model, motion, frame, axes)
 
 
 def _joint_map(model, motion, source, joint_map):
     """(file joint -> rig bone, how the names were read)."""
-    from vfit_engine.body.pose import joint_naming
-
     rig = set(model.bone_names)
     if joint_map is not None:
         if isinstance(joint_map, (str, os.PathLike)):
@@ -215,8 +215,6 @@ def _joint_map(model, motion, source, joint_map):
 
 def _renamed(motion, mapping):
     """``motion`` with its joints renamed by ``mapping`` (unmapped joints keep names the rig does not have)."""
-    import copy
-
     if not mapping:
         return motion
     out = copy.copy(motion)
@@ -226,9 +224,6 @@ def _renamed(motion, mapping):
 
 def _retarget(model, motion, axes, rot):
     """The mapped bones' local rotations with the rest poses aligned (module docstring)."""
-    from vfit_engine.body.pose import rig_order
-    from vfit_engine.body.segment import bone_positions
-
     pos = bone_positions(model, model.default_verts("female"))
     order, parent = rig_order(model)
     index = {n: b for b, n in enumerate(model.bone_names)}
@@ -270,8 +265,6 @@ def _retarget(model, motion, axes, rot):
 
 def _turn(a, b):
     """(3, 3) the smallest rotation taking direction ``a`` to direction ``b``."""
-    from scipy.spatial.transform import Rotation
-
     a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
     axis = np.cross(a, b)
     s, c = np.linalg.norm(axis), float(np.clip(a @ b, -1.0, 1.0))
@@ -286,8 +279,6 @@ def _turn(a, b):
 def _root_travel(model, motion, axes, count):
     """(count, 3) m: the file root's translation from its first frame in its first ``count`` frames, scaled from
     the file's legs to the body's."""
-    from vfit_engine.body.pose import body_joints
-
     rest = motion.rest_positions() @ axes.T
     file_height = float(rest[:, 1].max() - rest[:, 1].min())
     joints = body_joints(model, model.default_verts("female"))
@@ -310,9 +301,6 @@ class Poser:
     """
 
     def __init__(self, model, verts, pin_points=None, method="dqs"):
-        from vfit_engine.body.model import N_BODY
-        from vfit_engine.body.pose import body_joints, rig_order, skinning_for
-
         verts = np.ascontiguousarray(verts, dtype=np.float64)
         self.model, self.method = model, method
         self.joints = body_joints(model, verts)
@@ -326,11 +314,6 @@ class Poser:
 
     def _point_skinning(self, points):
         """A :class:`Skinning` of ``points``: each takes the weights of the body point nearest to it."""
-        from scipy import sparse
-
-        from vfit_engine.body.skinning import Skinning
-        from vfit_engine.collide.body_mesh import MeshCollider
-
         tris = self.model.body_tris
         _, foot, _, tri = MeshCollider(self.rest, tris).query(points, max_out=np.inf, max_in=np.inf)
         corners = self.rest[tris[tri]]

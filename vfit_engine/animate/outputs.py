@@ -9,6 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from vfit_engine.animation import write_gif
+from vfit_engine.body.bodyio import body_mesh
+from vfit_engine.body.model import N_BODY
+from vfit_engine.drape.metrics import vertex_strain
+from vfit_engine.io.gltf import ScenePart, write_animation_glb
+
 #: The quality bars of every frame (module docstring).
 MAX_DEPTH_MM = 2.0
 MAX_INSIDE_PERCENT = 1.0
@@ -74,10 +80,6 @@ def _num(x):
 
 def write_animation(path, setup, model, bodies, cloth, fps):
     """``animation.glb``: the body and the garment in every frame (:func:`vfit_engine.io.gltf.write_animation_glb`)."""
-    from vfit_engine.body.bodyio import body_mesh
-    from vfit_engine.body.model import N_BODY
-    from vfit_engine.io.gltf import ScenePart, write_animation_glb
-
     parts = [ScenePart("body", body_mesh(model, bodies[0])), ScenePart("garment", setup.garment.mesh)]
     return write_animation_glb(path, parts, [np.asarray(bodies)[:, :N_BODY], np.asarray(cloth)], fps)
 
@@ -85,9 +87,6 @@ def write_animation(path, setup, model, bodies, cloth, fps):
 def write_preview_gif(path, setup, model, bodies, cloth, fps):
     """``preview.gif``: the garment (coloured by yarn strain) on the moving body, from the front and the side,
     at most :data:`GIF_FRAMES` frames."""
-    from vfit_engine.animation import write_gif
-    from vfit_engine.drape.metrics import vertex_strain
-
     pick = np.unique(np.linspace(0, len(cloth) - 1, min(len(cloth), GIF_FRAMES)).round().astype(int))
     mesh = setup.garment.mesh
     strain = np.stack([vertex_strain(mesh, cloth[k]) for k in pick])

@@ -29,9 +29,17 @@ import json
 import math
 from pathlib import Path
 
+import yaml
+
+from vfit_engine.body.gender import parse_gender
 from vfit_engine.body.measure import DEFINITIONS
+from vfit_engine.drape.colliders import COLLIDERS
 from vfit_engine.drape.setup import REST_MODES
-from vfit_engine.errors import InputError
+from vfit_engine.errors import InputError, VfitError
+from vfit_engine.garment.mhclo import parse_mhclo
+from vfit_engine.garment.transfer import METHODS
+from vfit_engine.sim.materials import resolve_material
+from vfit_engine.sizes import parse_sizes
 from vfit_engine.units import LENGTH_UNITS
 
 #: Body girths a body spec may give, cm (``vfit morph``'s options; tests hold the two lists equal).
@@ -133,7 +141,6 @@ def read_document(path):
     try:
         if path.suffix.lower() == ".json":
             return json.loads(text)
-        import yaml
 
         return yaml.safe_load(text)
     except ValueError as exc:  # json.JSONDecodeError
@@ -198,8 +205,6 @@ def _known(mapping, keys, where):
 
 
 def _garments(entries, base, path):
-    from vfit_engine.fit.sizes import parse_sizes
-
     if isinstance(entries, (str, dict)):
         entries = [entries]
     if not isinstance(entries, list) or not entries:
@@ -234,9 +239,6 @@ def _garments(entries, base, path):
 def _tag_gender(file):
     """The garment's gender from the tags of the ``.mhclo`` beside it (None: none, or unreadable -- the
     worker then reports the garment's own error)."""
-    from vfit_engine.errors import VfitError
-    from vfit_engine.garment.mhclo import parse_mhclo
-
     mhclo = file.with_suffix(".mhclo")
     try:
         return parse_mhclo(mhclo).gender if mhclo.is_file() else None
@@ -246,8 +248,6 @@ def _tag_gender(file):
 
 def _material(spec, base, where):
     """(the material as the worker takes it, what identifies it in a task id)."""
-    from vfit_engine.sim.materials import resolve_material
-
     spec = str(spec)
     if spec.lower().endswith(".json"):
         file = (base / spec).resolve()
@@ -343,8 +343,6 @@ def body_spec(spec, where, base):
 
 
 def _gender(value, where):
-    from vfit_engine.body.gender import parse_gender
-
     try:
         return parse_gender(value)
     except ValueError as exc:
@@ -352,9 +350,6 @@ def _gender(value, where):
 
 
 def _drape_options(opts, path):
-    from vfit_engine.drape.colliders import COLLIDERS
-    from vfit_engine.garment.transfer import METHODS
-
     where = f"{path}: drape"
     if not isinstance(opts, dict):
         raise InputError(f"{where}: give a mapping of drape options ({', '.join(DRAPE_KEYS)})")

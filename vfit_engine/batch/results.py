@@ -30,6 +30,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from vfit_engine.errors import InputError
 from vfit_engine.io.atomic import atomic_write
 
 _FIT_ROW = pa.struct([("region", pa.string()), ("key", pa.bool_()), ("body_girth_cm", pa.float64()),
@@ -90,8 +91,6 @@ class ResultStore:
         self.path = self.outdir / "results.parquet"
         self.fresh = []  # the one-row parts this store wrote since its last merge
         if self.path.exists() and not self.path.is_dir():
-            from vfit_engine.errors import InputError
-
             raise InputError(f"{self.path} is a file, not vfit's results folder: use another -o OUTDIR")
 
     def parts(self):

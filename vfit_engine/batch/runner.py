@@ -36,9 +36,15 @@ import logging
 import threading
 import time
 
+import dask
+from distributed import Client, LocalCluster, as_completed
+from distributed.diagnostics.plugin import WorkerPlugin
+
+from vfit_engine import process_cache
 from vfit_engine.batch.results import ResultStore, flat_row
 from vfit_engine.batch.task import blank_row, build_body, run_task
 from vfit_engine.errors import InputError
+from vfit_engine.sizes import default_workers
 
 #: Environment of the local cluster's worker processes (read when they import Numba / BLAS).
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -72,14 +78,10 @@ class Summary:
 def _warm_up():
     """Load the body model and kernels in a thread of a fresh worker (its first task waits for the lock in
     :mod:`vfit_engine.process_cache` instead of loading them twice)."""
-    from vfit_engine import process_cache
-
     threading.Thread(target=process_cache.warm_up, name="vfit-warm-up", daemon=True).start()
 
 
 def _plugin():
-    from distributed.diagnostics.plugin import WorkerPlugin
-
     class WarmUp(WorkerPlugin):
         name = "vfit-warm-up"
 
@@ -96,8 +98,6 @@ def local_cluster(n_workers):
     Without a dashboard Dask's scheduler still serves its health and metrics routes over HTTP, on port 8787
     unless told otherwise: a second cluster on the machine (another batch, a test) then warned "Port 8787 is
     already in use". It listens on a free local port instead (``SCHEDULER_HTTP``)."""
-    from distributed import LocalCluster
-
     return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
                         scheduler_kwargs={"dashboard_address": SCHEDULER_HTTP}, silence_logs=logging.ERROR,
                         env=dict(WORKER_ENV))
@@ -107,9 +107,6 @@ def local_cluster(n_workers):
 def connect(workers=None, scheduler=None, retries=2):
     """A Dask client: on the scheduler at ``scheduler`` (an address), else on a LocalCluster of ``workers``
     processes (None: the cores). Yields (client, number of workers)."""
-    import dask
-    from distributed import Client
-
     with dask.config.set(dict(DASK_CONFIG, **{"distributed.scheduler.allowed-failures": int(retries)})):
         if scheduler:
             try:
@@ -120,7 +117,6 @@ def connect(workers=None, scheduler=None, retries=2):
             with client:
                 yield client, len(client.scheduler_info()["workers"])
             return
-        from vfit_engine.fit.sizes import default_workers
 
         n = int(workers or default_workers())
         with local_cluster(n) as cluster, Client(cluster, set_as_default=False) as client:
@@ -177,8 +173,6 @@ def run_batch(job, outdir, workers=None, scheduler=None, retries=2, keep_meshes=
 def _run(client, todo, store, retries, keep_meshes, on_task):
     """Submit ``todo`` in order through a window of :func:`_window` tasks (a million futures at once would
     hold the client's and the scheduler's memory for nothing) and write each row as its task finishes."""
-    from distributed import as_completed
-
     client.register_plugin(_plugin())
     queue, futures, bodies = iter(todo), {}, {}
 

@@ -6,7 +6,7 @@
 
 The drape is ``vfit drape``'s path (:func:`vfit_engine.drape.prepare_drape`, :func:`run_drape`, the
 fit table of :mod:`vfit_engine.fit.table`) without its files; a task with a size first grades the
-garment to that size as ``vfit size`` does (:func:`vfit_engine.fit.sizes.grade`, the size body at the
+garment to that size as ``vfit size`` does (:func:`vfit_engine.sizes.grade`, the size body at the
 customer's height). On a cluster the body is a task of its own (:func:`build_body`), built once for
 all the drapes on it and handed to them by Dask; run alone, a task builds it. The worker keeps the body
 model, the size bodies and the fit tables (:mod:`vfit_engine.process_cache`).
@@ -23,8 +23,21 @@ import socket
 import tempfile
 import time
 
+from distributed import get_worker
+
 from vfit_engine import process_cache
-from vfit_engine.errors import VfitError
+from vfit_engine.body.bodyio import write_body
+from vfit_engine.body.measure import stature
+from vfit_engine.body.resolve import resolve_body
+from vfit_engine.drape import DrapeDiverged, DrapeSettings, prepare_drape, run_drape
+from vfit_engine.drape.setup import garment_gender
+from vfit_engine.errors import InputError, VfitError
+from vfit_engine.fit.maps import fit_maps
+from vfit_engine.fit.outputs import write_fit_ply
+from vfit_engine.fit.table import summary_line
+from vfit_engine.garment.garment import load_garment
+from vfit_engine.io.mesh import write_mesh
+from vfit_engine.sizes import grade, size_body, size_gender
 
 #: Statuses of a task: settled, not settled within the frame limit (judged on the last frame), failed.
 STATUSES = ("ok", "not_converged", "failed")
@@ -37,10 +50,8 @@ def now_utc():
 def worker_name():
     """The Dask worker's address, else host:pid."""
     try:
-        from distributed import get_worker
-
         return get_worker().address
-    except (ImportError, ValueError):
+    except ValueError:  # not in a Dask worker
         return f"{socket.gethostname()}:{os.getpid()}"
 
 
@@ -55,8 +66,6 @@ def build_body(spec):
     """The body of ``spec`` (a payload's ``body``) as (Body or None, error message or None, seconds): a
     body that cannot be built (an unreachable measurement) is an answer, not an exception, so that its
     tasks fail with the message instead of Dask retrying it."""
-    from vfit_engine.body.resolve import resolve_body
-
     t0 = time.perf_counter()
     try:
         body = resolve_body(process_cache.model(), spec.get("path"), spec.get("targets"), spec.get("weight_kg"),
@@ -70,8 +79,6 @@ def run_task(job, built=None):
     """Run one task (``job``: :meth:`vfit_engine.batch.job.Task.payload`) on its body (``built``: what
     :func:`build_body` returned; None: build it here); returns its row (a dict of the fields of
     :data:`vfit_engine.batch.results.SCHEMA`, ``meshes`` holding file bytes with ``keep_meshes``)."""
-    from vfit_engine.drape import DrapeDiverged
-
     if built is None:
         built = build_body(job["body"])
     t0 = time.perf_counter()  # the task's own time: its body is timed apart (built once for all its tasks)
@@ -99,9 +106,6 @@ def run_task(job, built=None):
 
 def _sized(garment, model, body, gender, size):
     """The garment graded to ``size`` at the customer's height, and that size's body (its reference)."""
-    from vfit_engine.body.measure import stature
-    from vfit_engine.fit.sizes import grade, size_body, size_gender
-
     key_gender = size_gender(gender)
     height = round(stature(body.verts), 4)
     body_x, _ = process_cache.body(("size", key_gender, size, height),
@@ -111,13 +115,6 @@ def _sized(garment, model, body, gender, size):
 
 def _drape(job, built, row, lap):
     """The task's work, filling ``row``; ``lap(stage)`` records a stage's time."""
-    from vfit_engine.drape import DrapeSettings, prepare_drape, run_drape
-    from vfit_engine.drape.setup import garment_gender
-    from vfit_engine.errors import InputError
-    from vfit_engine.fit.maps import fit_maps
-    from vfit_engine.fit.table import summary_line
-    from vfit_engine.garment.garment import load_garment
-
     body, error, _ = built
     model = process_cache.model()
     lap("start")
@@ -160,10 +157,6 @@ def _drape(job, built, row, lap):
 def _mesh_bytes(setup, pos, maps, model):
     """final.obj, fit.ply and body.obj of the drape as bytes (the client writes them: a remote worker
     need not share a file system with it)."""
-    from vfit_engine.body.bodyio import write_body
-    from vfit_engine.fit.outputs import write_fit_ply
-    from vfit_engine.io.mesh import write_mesh
-
     out = {}
     with tempfile.TemporaryDirectory(prefix="vfit-task-") as tmp:
         paths = {name: os.path.join(tmp, name) for name in ("final.obj", "fit.ply", "body.obj")}

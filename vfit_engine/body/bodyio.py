@@ -3,23 +3,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
-from ..units import LENGTH_UNITS, guess_length_unit
-from .model import N_BODY, N_VERTS, BodyModel
+from vfit_engine.body.model import N_BODY, N_VERTS, BodyModel
+from vfit_engine.errors import InputError
+from vfit_engine.io.mesh import read_mesh, write_mesh
+from vfit_engine.io.meshdata import mesh_from_faces
+from vfit_engine.units import LENGTH_UNITS, guess_length_unit
 
 
 def body_mesh(model: BodyModel, verts: np.ndarray):
     """MeshData of the visible body: the 13,380 body vertices in hm08 order, its quads and UVs."""
-    from ..io.mesh import mesh_from_faces
-
     return mesh_from_faces(np.asarray(verts, dtype=np.float64)[:N_BODY], model.body_quads,
                            uvs=model.uvs, face_uvs=model.body_quad_uvs)
 
 
 def write_body(path, model: BodyModel, verts: np.ndarray, header: str | None = None) -> None:
     """Write the body to ``path`` (.obj with UVs, or .ply), metres, atomically."""
-    from ..io.mesh import write_mesh
-
     write_mesh(path, body_mesh(model, verts), header=header)
 
 
@@ -40,8 +38,6 @@ def read_body(path, model: BodyModel, units: str = "auto") -> tuple[np.ndarray, 
     units : str
         The unit the file was read in (``units`` or the one guessed from its height).
     """
-    from ..io.mesh import read_mesh
-
     mesh = read_mesh(path)
     n = mesh.n_verts
     if n not in (N_BODY, N_VERTS):

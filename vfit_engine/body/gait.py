@@ -27,6 +27,11 @@ flexion of the knee (shank back) a positive one, dorsiflexion of the ankle (toes
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import CubicSpline
+
+from vfit_engine.body.pose import rig_motion
+from vfit_engine.body.segment import bone_positions
+from vfit_engine.errors import InputError
 
 #: Right-side key points (% of the stride, degrees). Hip: + flexion; knee: + flexion; ankle: + dorsiflexion.
 HIP_FLEXION = ((0, 30), (10, 28), (30, 10), (50, -10), (60, -4), (73, 22), (87, 33), (100, 30))
@@ -53,8 +58,6 @@ LEG_ARM = (("upperleg01", HIP_FLEXION, "X", -1.0), ("lowerleg01", KNEE_FLEXION, 
 def curve(points, phase):
     """The periodic cubic spline through ``points`` ((%, degrees), first and last equal) at ``phase`` (0..1,
     array), degrees."""
-    from scipy.interpolate import CubicSpline
-
     x, y = np.array(points, dtype=np.float64).T
     return CubicSpline(x / 100.0, y, bc_type="periodic")(np.mod(phase, 1.0))
 
@@ -109,12 +112,7 @@ def walk_motion(model, speed=1.3, fps=30.0, cycles=1):
     pose_body` places the joints on the body it poses and takes only the rotations), with channels
     ``Zrotation Xrotation Yrotation``; the bones the gait does not drive stay at rest.
     """
-    from vfit_engine.body.pose import rig_motion
-    from vfit_engine.body.segment import bone_positions
-
     if not (np.isfinite(speed) and 0.3 <= speed <= 2.5):
-        from vfit_engine.errors import InputError
-
         raise InputError(f"walking speed {speed} m/s is not a walk; use 0.3-2.5 m/s")
     period = stride_time(speed)
     n = max(int(round(period * fps)), 2)

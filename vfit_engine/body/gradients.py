@@ -18,6 +18,10 @@ Each gradient is sparse: (vertex indices (k,), d/dv (k, 3)).
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import ConvexHull
+
+from vfit_engine.kernels.girth_grad import girth_gradient as kernel
+from vfit_engine.kernels.section import select_band_edges
 
 
 def _unit(d):
@@ -38,8 +42,6 @@ def girth_gradient(sections, verts, h, x0=0.0):
 def girth_gradient_dy(sections, verts, h, eps, x0=0.0):
     """:func:`girth_gradient` and ``(g(h - eps), g(h + eps))``, the tape girths (m) beside the plane, from
     the same kernel call (the morph's ``dg/dy``). Returns (idx, grad, (g_lo, g_hi))."""
-    from ..kernels.girth_grad import girth_gradient as kernel
-
     verts = np.ascontiguousarray(verts, dtype=np.float64)
     s = sections
     rows = 2 * s.edge_count  # at most 2 per cut edge; np.empty touches only the pages written
@@ -65,8 +67,6 @@ def girth_gradient_reference(sections, verts, h, x0=0.0):
     -------
     idx : (k,) int64, grad : (k, 3) float64 (m per m)
     """
-    from scipy.spatial import ConvexHull
-
     loops = sections.loops(verts, h)
     if not loops:
         return np.zeros(0, np.int64), np.zeros((0, 3))
@@ -87,7 +87,6 @@ def girth_gradient_reference(sections, verts, h, x0=0.0):
     dq = d_in - d_out  # (m, 2): dP/d(x, z) of each hull point
 
     # match every hull point to the mesh edge it was cut from
-    from ..kernels.section import select_band_edges
 
     cand = sections.scratch.cand
     n_cut = select_band_edges(verts, sections.edges, h, h, cand)  # the edges y = h cuts

@@ -51,8 +51,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..units import LENGTH_UNITS
-from .model import N_BODY, BodyModel
+from vfit_engine.body.gradients import girth_gradient_dy, ruler_gradient, stature_gradient
+from vfit_engine.body.model import N_BODY, BodyModel
+from vfit_engine.kernels.volume import enclosed_volume as volume
+from vfit_engine.kernels.volume import volume_gradient
+from vfit_engine.section import MeshSections
+from vfit_engine.units import LENGTH_UNITS
 
 DEFINITIONS = ("iso", "makehuman", "spline")
 #: kg/m^3 used for body mass from volume (whole-body density of adults is about 985-1,000 kg/m^3).
@@ -172,8 +176,6 @@ class Measurer:
     """
 
     def __init__(self, model: BodyModel | None = None):
-        from ..section import MeshSections  # imports numba: only here, never on the --help path
-
         self.model = model or BodyModel.load()
         self.rulers = self.model.rulers
         self.tris = self.model.body_tris
@@ -254,8 +256,6 @@ class Measurer:
         (``dg/dy`` by a central difference). The ``spline`` girth has no
         analytic gradient here (returns None).
         """
-        from .gradients import girth_gradient_dy, ruler_gradient, stature_gradient
-
         verts = np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64)
         if name == "height":
             return stature_gradient(verts, N_BODY)
@@ -289,14 +289,10 @@ class Measurer:
     def mass(self, verts) -> float:
         """Body mass (kg): enclosed volume of the body mesh times ``DENSITY`` (a Numba kernel;
         :func:`enclosed_volume` is its NumPy reference)."""
-        from ..kernels.volume import enclosed_volume as volume
-
         return volume(np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64), self.tris) * DENSITY
 
     def mass_gradient(self, verts) -> np.ndarray:
         """(13380, 3) float64: d mass / d vertex (kg per m)."""
-        from ..kernels.volume import volume_gradient
-
         grad = np.empty((N_BODY, 3))
         volume_gradient(np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64), self.tris, grad)
         return grad * DENSITY

@@ -6,9 +6,13 @@ Everything here is in metres, Y up, +Z front, +X the body's left.
 """
 from __future__ import annotations
 
+import hashlib
 import json
+import os
+import tempfile
 from dataclasses import dataclass, field
 from functools import cached_property
+from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
@@ -23,8 +27,6 @@ ETHNICITIES = ("african", "asian", "caucasian")
 def data_dir() -> Path:
     """Where the body data lives: inside the installed package, else the source tree's ``data/``."""
     try:
-        from importlib.resources import files
-
         p = Path(str(files("vfit_engine.data")))
         if (p / "hm08.npz").exists():
             return p
@@ -36,8 +38,6 @@ def data_dir() -> Path:
 def cache_dir() -> Path:
     """Where vfit keeps files between runs, outside the repository: ``$VFIT_CACHE``, else
     ``$XDG_CACHE_HOME/vfit``, else ``~/.cache/vfit``."""
-    import os
-
     if os.environ.get("VFIT_CACHE"):
         return Path(os.environ["VFIT_CACHE"])
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "vfit"
@@ -52,10 +52,6 @@ def _inflated(path: Path) -> Path:
     new one (the copies of an older source of the same path are removed); it is written under a temporary
     name and renamed, so a process never reads half a copy.
     """
-    import hashlib
-    import os
-    import tempfile
-
     try:
         st = path.stat()
         tag = hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:12]

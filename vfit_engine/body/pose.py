@@ -30,7 +30,10 @@ import dataclasses
 
 import numpy as np
 
+from vfit_engine.body.segment import bone_positions
+from vfit_engine.body.skinning import Skinning
 from vfit_engine.errors import InputError
+from vfit_engine.io.bvh import Motion
 
 #: File axes -> vfit axes for a Z-up file (MakeHuman's poses): (x, y, z) -> (x, z, -y).
 Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -116,8 +119,6 @@ def bone_rotations(model, motion, frame=0, axes=None):
 def body_joints(model, verts):
     """(b, 3) m: the rig's bone heads (joints) placed on the body ``verts``, ``model.bone_names`` order
     (:func:`vfit_engine.body.segment.bone_positions`); the same for every pose of that body."""
-    from vfit_engine.body.segment import bone_positions
-
     pos = bone_positions(model, verts)
     return np.array([pos[n][0] for n in model.bone_names])
 
@@ -174,8 +175,6 @@ class PosedBody:
 def skinning_for(model, n_verts):
     """The rig's :class:`~vfit_engine.body.skinning.Skinning` of the first ``n_verts`` vertices (the whole
     model with its helpers, or the 13,380 vertices of a body file)."""
-    from vfit_engine.body.skinning import Skinning
-
     bone, vertex, weight = model.skin
     keep = vertex < n_verts
     return Skinning(bone[keep], vertex[keep], weight[keep], n_verts, len(model.bone_names))
@@ -199,8 +198,6 @@ def rig_motion(model, angles=None, n_frames=1, fps=30.0):
     offsets from the default female body (m), channels ``Zrotation Xrotation Yrotation``; all angles zero
     but ``angles`` (bone name -> (n_frames, 3) or (3,) degrees about X, Y, Z). :func:`pose_body` places the
     joints on the body it poses, so only the rotations of such a motion matter."""
-    from vfit_engine.io.bvh import Motion
-
     heads = body_joints(model, model.default_verts("female"))
     order, parent = rig_order(model)
     index = {b: i for i, b in enumerate(order)}

@@ -6,12 +6,17 @@ into vertices, for ``vfit drape``, ``vfit transfer`` and the drape set-up
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
-from .model import N_BODY, N_VERTS, BodyModel
+from vfit_engine.body.bodyio import read_body
+from vfit_engine.body.model import N_BODY, N_VERTS, BodyModel
+from vfit_engine.body.morph import Morpher
+from vfit_engine.errors import InputError
+from vfit_engine.io.mesh import read_mesh
+from vfit_engine.units import LENGTH_UNITS
 
 
 @dataclass
@@ -50,10 +55,6 @@ def default_body(model: BodyModel, gender="female") -> Body:
 
 def read_body_file(path, model: BodyModel, units="auto") -> Body:
     """A body file (hm08 topology, m/dm/cm/mm), with its helper vertices when the file has them."""
-    from ..io.mesh import read_mesh
-    from ..units import LENGTH_UNITS
-    from .bodyio import read_body
-
     verts, unit = read_body(path, model, units)
     mesh = read_mesh(path)  # read_body keeps the visible body; the helpers serve .mhclo bindings
     if mesh.n_verts == N_VERTS:
@@ -80,8 +81,6 @@ def resolve_body(model: BodyModel, path=None, targets=None, weight_kg=None, gend
     InputError
         Both a file and measurements, a missing or unreadable file, unreachable targets.
     """
-    import os
-
     targets = dict(targets or {})
     if path is not None:
         if targets or weight_kg is not None:
@@ -90,8 +89,6 @@ def resolve_body(model: BodyModel, path=None, targets=None, weight_kg=None, gend
             raise InputError(f"body file not found: {path}")
         return read_body_file(path, model)
     if targets or weight_kg is not None:
-        from .morph import Morpher
-
         res = Morpher(model).solve(targets, gender=gender, definition=definition, weight_kg=weight_kg)
         return Body(res.verts, {"source": "morph", "gender": gender, "definition": definition,
                                 "targets_cm": {k: round(v * 100, 4) for k, v in targets.items()},

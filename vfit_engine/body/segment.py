@@ -47,10 +47,14 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
-from ..errors import InputError
-from .levels import Sections, body_levels
-from .model import N_BODY, N_VERTS, BodyModel
+from vfit_engine.body.levels import Sections, body_levels
+from vfit_engine.body.model import N_BODY, N_VERTS, BodyModel
+from vfit_engine.errors import InputError
+from vfit_engine.kernels.flood import flood_fill_span, flood_fill_stack, multi_source_bfs, nearest_solid, voxelise_y
 
 PARTS = ("head", "neck", "chest", "abdomen", "pelvis",
          "upperarm.L", "upperarm.R", "lowerarm.L", "lowerarm.R", "hand.L", "hand.R",
@@ -199,8 +203,6 @@ def transfer_points(ref_body: np.ndarray, points: np.ndarray, body: np.ndarray, 
     -------
     (p, 3) float64, m
     """
-    from scipy.spatial import cKDTree
-
     ref_body = np.asarray(ref_body, dtype=np.float64)
     points = np.asarray(points, dtype=np.float64)
     _, idx = cKDTree(ref_body).query(points, k=k)
@@ -244,8 +246,6 @@ def voxelise(verts: np.ndarray, tris: np.ndarray, h: float = 0.005, pad: int = 2
     its 6 neighbours inside the grid. The origin is nudged by a fraction of a micrometre so that
     voxel columns do not pass exactly through the vertices of a mirror-symmetric mesh.
     """
-    from ..kernels.flood import voxelise_y
-
     v = np.ascontiguousarray(verts, dtype=np.float64)
     t = np.ascontiguousarray(tris, dtype=np.int64)
     lo = v[np.unique(t)].min(axis=0)
@@ -266,8 +266,6 @@ def fill_compare(grid: VoxelGrid, seed: int) -> dict:
         ``filled`` voxels, ``same_set`` (bool), and ``stack``/``span`` each with ``visits``,
         ``pushes``, ``peak`` (see :mod:`vfit_engine.kernels.flood`) and ``time_s``.
     """
-    from ..kernels.flood import flood_fill_span, flood_fill_stack
-
     out = {}
     sets = []
     for name, fn in (("stack", flood_fill_stack), ("span", flood_fill_span)):
@@ -317,7 +315,6 @@ def _seeds(model: BodyModel, verts: np.ndarray, grid: VoxelGrid):
             idx = grid.index(a + t * (c - a))
             ok = grid.solid[idx] != 0
             if not ok.any():  # a bone outside the voxelised solid (a thin finger tip): nearest voxel
-                from ..kernels.flood import nearest_solid
 
                 near = np.empty(1, dtype=np.int64)
                 nearest_solid(np.ascontiguousarray(0.5 * (a + c)[None]), *grid.origin, grid.h, grid.solid,
@@ -344,8 +341,6 @@ def segment(model: BodyModel, verts, voxel: float = 0.005) -> Segmentation:
     -------
     Segmentation
     """
-    from ..kernels.flood import multi_source_bfs, nearest_solid
-
     if not (np.isfinite(voxel) and 0.001 <= voxel <= 0.05):
         raise InputError(f"voxel size {voxel} m is outside 0.001-0.05 m")
     verts = _body_verts(model, verts)
@@ -419,9 +414,6 @@ def six_part_split(model: BodyModel, verts) -> np.ndarray:
     (13380,) int64
         Index into :data:`SIX_PARTS` of every body vertex.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     v = np.ascontiguousarray(_body_verts(model, verts)[:N_BODY])
     tris = model.body_tris
     sec = Sections(v, tris)

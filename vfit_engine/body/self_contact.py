@@ -14,6 +14,11 @@ tangent plane alone overstates a hand's depth in a thigh by half (14 against 9.4
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
+
+from vfit_engine.body.model import N_BODY
+from vfit_engine.body.segment import PARTS, skin_parts
+from vfit_engine.geometry import closest_point_barycentric, vertex_normals
 
 #: Forearm vertices farther than this (m, at rest) from the hand do not move with it; the move fades linearly.
 FOREARM = 0.22
@@ -42,10 +47,6 @@ class ArmContact:
     """
 
     def __init__(self, rest, tris, parts, clearance=0.004):
-        from scipy.spatial import cKDTree
-
-        from vfit_engine.body.segment import PARTS
-
         self.tris = np.asarray(tris, dtype=np.int64)
         self.clearance = float(clearance)
         parts = np.asarray(parts)
@@ -62,10 +63,6 @@ class ArmContact:
     def apply(self, verts):
         """(v, 3) m: ``verts`` (a posed body) with each hand and forearm out of the rest of the body; the
         same array when no arm comes within ``clearance`` of it."""
-        from scipy.spatial import cKDTree
-
-        from vfit_engine.geometry import vertex_normals
-
         out = verts
         normals = None
         for moved, weight, other, ring in self.sides:
@@ -99,9 +96,6 @@ def lift_hands(model, rest):
     """A function of ``posed`` (a body of ``model``'s topology posed from ``rest``, with or without helper
     vertices) that returns it with its hands resting on the skin (:class:`ArmContact`, set up once for all
     the poses of ``rest``); the helper vertices are left as skinned."""
-    from vfit_engine.body.model import N_BODY
-    from vfit_engine.body.segment import skin_parts
-
     arms = ArmContact(np.asarray(rest, dtype=np.float64)[:N_BODY], model.body_tris, skin_parts(model))
 
     def lift(posed):
@@ -131,8 +125,6 @@ def _rings(tris, keep):
 def _heights(points, verts, normals, rings):
     """Signed height (k,) m of each point over the triangles ``rings`` (k, r, 3) round its nearest vertex, and
     the skin's unit normal (k, 3) at the closest point (module docstring)."""
-    from vfit_engine.garment.pins import closest_point_barycentric
-
     k, r = rings.shape[:2]
     p = np.repeat(points, r, axis=0)
     t = rings.reshape(-1, 3)

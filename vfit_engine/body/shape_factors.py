@@ -25,7 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from vfit_engine.body.model import N_BODY, Macro, gender_value
+from vfit_engine.body.morph import CHANNELS
+from vfit_engine.errors import InputError
 
 
 @dataclass
@@ -224,9 +226,6 @@ def examples_from_model(model, measurer, n_examples, rng, names=("bust", "waist"
     features : (n_examples, k) float64, m
         Measured ``names`` of each example.
     """
-    from .model import N_BODY, Macro, gender_value
-    from .morph import CHANNELS
-
     unknown = [x for x in names if x not in CHANNELS]
     if unknown:
         raise InputError(f"no measure channel for {', '.join(unknown)}; choose from {', '.join(CHANNELS)}")

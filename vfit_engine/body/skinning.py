@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from vfit_engine.garment.arap import rigid_to_dual_quat
+from vfit_engine.kernels import skinning as kernels
+from vfit_engine.rotations import rigid_to_dual_quat
 
 #: Tolerance of the rigidity check for DQS: ``|R^T R - I|`` and ``|det R - 1|``.
 RIGID_TOL = 1e-6
@@ -116,8 +117,6 @@ class Skinning:
         ValueError
             Wrong shape, NaN/inf, an unknown method, or a non-rigid matrix with ``"dqs"``.
         """
-        from vfit_engine.kernels import skinning as kernels
-
         if method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, not {method!r}")
         rest = _as_finite(rest_verts, "rest_verts", (self.vertex_count, 3))

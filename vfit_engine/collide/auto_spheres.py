@@ -17,7 +17,10 @@ between them (by up to ``tolerance``), which the collider's relative skin makes 
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
+from scipy.spatial import cKDTree
 
+from vfit_engine.collide.body_mesh import MeshCollider
 from vfit_engine.errors import InputError
 
 #: Candidate grid spacing, m.
@@ -87,11 +90,6 @@ def fit_spheres(body_verts, body_tris, collider=None, extra_points=None, spacing
     centres : (s, 3) float64, m
     radii : (s,) float64, m
     """
-    from scipy import sparse
-    from scipy.spatial import cKDTree
-
-    from vfit_engine.collide.body_mesh import MeshCollider
-
     v = np.ascontiguousarray(body_verts, dtype=np.float64)
     tris = np.ascontiguousarray(body_tris, dtype=np.int64)
     if collider is None:

@@ -24,6 +24,10 @@ import math
 import numpy as np
 
 from vfit_engine.errors import InputError
+from vfit_engine.kernels import collide_mesh as K
+from vfit_engine.kernels import collide_mesh_build as B
+from vfit_engine.kernels import collide_mesh_empty as E
+from vfit_engine.kernels.collide_mesh import project_points
 
 #: Cell edge (m) of the automatic grid is this fraction of the mean triangle edge ...
 _CELL_PER_EDGE = 1.0
@@ -63,8 +67,6 @@ def mesh_normals(verts, tris):
         Normalised sum of the incident face normals, each weighted by the triangle's
         angle at the vertex.
     """
-    from vfit_engine.kernels import collide_mesh_build as B
-
     verts = np.ascontiguousarray(verts, dtype=np.float64)
     tris = np.ascontiguousarray(tris, dtype=np.int64)
     tri_edges = np.empty_like(tris)
@@ -164,7 +166,6 @@ class MeshCollider:
             raise InputError(f"margin must be a positive length in m, got {margin!r}")
         self._cell_request = cell
         self._margin_request = margin
-        from vfit_engine.kernels import collide_mesh_build as B
 
         # the edge numbering depends on the triangles only: once per collider
         self.tri_edges = np.empty_like(tris)
@@ -268,10 +269,6 @@ class MeshCollider:
         grid box is the same and no vertex has moved farther than a cell since
         (:func:`~vfit_engine.kernels.collide_mesh_empty.loosen_empty_sd`).
         """
-        from vfit_engine.kernels import collide_mesh as K
-        from vfit_engine.kernels import collide_mesh_build as B
-        from vfit_engine.kernels import collide_mesh_empty as E
-
         nt = self.tris.shape[0]
         tri_normals, edge_normals = np.empty((nt, 3)), np.empty((self._edge_count, 3))
         vert_normals = np.empty_like(verts)
@@ -359,8 +356,6 @@ class MeshCollider:
             pseudo-normal when ``|d| < 1 nm``.
         tri : (n,) int64
         """
-        from vfit_engine.kernels import collide_mesh as K
-
         points = as_points(points, "points")
         max_out = self.radius if max_out is None else float(max_out)
         max_in = self.radius if max_in is None else float(max_in)
@@ -419,8 +414,6 @@ class MeshCollider:
         int
             Number of particles corrected.
         """
-        from vfit_engine.kernels.collide_mesh import project_points
-
         for name, a in (("x", x), ("x_prev", x_prev)):
             if not (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.ndim == 2 and a.shape[1] == 3
                     and a.flags.c_contiguous and a.flags.writeable):

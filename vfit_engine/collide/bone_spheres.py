@@ -30,8 +30,11 @@ triangles, so an inscribed sphere lies inside the body.
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
+from vfit_engine.body.segment import bone_positions, seed_bones
 from vfit_engine.errors import InputError
+from vfit_engine.section import MeshSections, rotation_to_y
 
 #: Radius rules accepted by :func:`fit_bone_spheres`.
 RADIUS_RULES = ("inscribed", "mean")
@@ -56,8 +59,6 @@ def skeleton_bones(model, verts, min_length=MIN_BONE_LENGTH):
     list of (head (3,) float64 m, tail (3,) float64 m)
         In the order of :func:`vfit_engine.body.segment.seed_bones` (part by part).
     """
-    from vfit_engine.body.segment import bone_positions, seed_bones
-
     pos = bone_positions(model, verts)
     chosen = [b for _part, names in seed_bones(model).items() for b in names]
     out = []
@@ -149,8 +150,6 @@ class _SurfaceDistance:
     """Exact unsigned distance from points to a triangle mesh, searched near the vertices."""
 
     def __init__(self, verts, tris):
-        from scipy.spatial import cKDTree
-
         self.verts, self.tris = verts, tris
         corners = verts[tris]
         edge = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)
@@ -201,8 +200,6 @@ def fit_bone_spheres(body_verts, body_tris, bones, per_bone=4, radius="inscribed
     bone_of : (s,) int64
         Index into ``bones`` of each sphere.
     """
-    from vfit_engine.section import MeshSections, rotation_to_y
-
     if radius not in RADIUS_RULES:
         raise InputError(f"unknown radius rule {radius!r}; use one of {list(RADIUS_RULES)}")
     if isinstance(per_bone, bool) or not isinstance(per_bone, (int, np.integer)) or per_bone < 1:

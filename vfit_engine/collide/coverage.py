@@ -14,6 +14,7 @@ The exact body mesh collider has neither by construction (its skin offset aside)
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 
 def surface_samples(collider, count_per_part=200, seed=0):
@@ -63,8 +64,6 @@ def coverage(collider, body_verts, labels, names, body_collider, count_per_part=
         overshoot_max_mm, samples}}, and ``total`` with the same keys over the whole body.
         Overshoot samples are assigned to the part of their nearest body vertex.
     """
-    from scipy.spatial import cKDTree
-
     body = np.ascontiguousarray(body_verts, dtype=np.float64)
     labels = np.asarray(labels, dtype=np.int64)[:body.shape[0]]
     body = body[:labels.size]

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from vfit_engine.errors import InputError
+from vfit_engine.kernels.collide_ellipsoid import collide_ellipsoids, ellipsoid_signed_distance
 
 #: Default fraction of a segment's vertices inside its ellipsoid.
 QUANTILE = 0.98
@@ -104,7 +105,6 @@ class EllipsoidCollider:
         """
         if self.count == 0:
             return 0
-        from vfit_engine.kernels.collide_ellipsoid import collide_ellipsoids
 
         return collide_ellipsoids(x, x_prev, inv_mass, *self.ellipsoid_arrays(),
                                   closest=self.closest, max_rounds=self.max_rounds)
@@ -115,7 +115,6 @@ class EllipsoidCollider:
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         if self.count == 0:
             return np.full(points.shape[0], np.inf)
-        from vfit_engine.kernels.collide_ellipsoid import ellipsoid_signed_distance
 
         return ellipsoid_signed_distance(points, self.centres, self.rotations, self.axes)
 

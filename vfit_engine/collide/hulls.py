@@ -29,8 +29,11 @@ split).
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import linprog
+from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 
 from vfit_engine.errors import InputError
+from vfit_engine.kernels.collide_hull import collide_hulls, hull_signed_distance
 
 #: Segments with fewer vertices get no hull (and no joint sphere).
 MIN_VERTICES = 20
@@ -47,9 +50,6 @@ def _polytope(normals, offsets):
     ``facet (H,) bool`` (planes touching the polytope in a face). Raises InputError when the
     set is empty, flat or unbounded.
     """
-    from scipy.optimize import linprog
-    from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
-
     # Chebyshev centre: max r with n . c + r |n| <= b (unit normals)
     h = normals.shape[0]
     res = linprog(np.r_[0.0, 0.0, 0.0, -1.0], A_ub=np.c_[normals, np.ones(h)], b_ub=offsets,
@@ -106,8 +106,6 @@ def hull_planes(points, max_faces=64, inflate=0.003):
     offsets : (H,) float64, m
         ``b = max_i n . p_i + inflate``.
     """
-    from scipy.spatial import ConvexHull
-
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     hull = ConvexHull(p)
     eq = hull.equations
@@ -182,8 +180,6 @@ def fit_hulls(body_verts, labels, names, body_tris=None, max_faces=64, inflate=0
     -------
     HullCollider
     """
-    from scipy.spatial import QhullError
-
     v = np.asarray(body_verts, dtype=np.float64)
     lab = np.asarray(labels)
     names = [str(n) for n in names]
@@ -343,8 +339,6 @@ class HullCollider:
         ``x``, ``x_prev`` C-contiguous float64 (n, 3), m; ``inv_mass`` (n,) 1/kg, 0 = pinned.
         See :mod:`vfit_engine.kernels.collide_hull` for the rule.
         """
-        from vfit_engine.kernels.collide_hull import collide_hulls
-
         collide_hulls(x, x_prev, inv_mass, self.normals, self.offsets + self.skin, self.hull_start,
                       self._hull_centres, self._hull_reach, self.sphere_centres, self.sphere_radii + self.skin,
                       self.friction, self.restitution)
@@ -356,8 +350,6 @@ class HullCollider:
         the minimum over parts is exact outside the union and inside it is the depth in the
         part the point is deepest in. ``points`` (n, 3) -> (n,) float64.
         """
-        from vfit_engine.kernels.collide_hull import hull_signed_distance
-
         return hull_signed_distance(points, self.normals, self.offsets, self.hull_start, self.tri_verts, self.tris,
                                     self.tri_start, self.sphere_centres, self.sphere_radii)
 

@@ -27,11 +27,16 @@ The grid box is fixed for the motion: give it the box of all its poses (``box``)
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
 from vfit_engine.collide.body_mesh import as_points, morton_order, pair_estimate
 from vfit_engine.errors import InputError
+from vfit_engine.kernels import collide_mesh as K
+from vfit_engine.kernels import collide_mesh_build as B
+from vfit_engine.kernels import collide_mesh_empty as E
+from vfit_engine.kernels import collide_mesh_sweep as S
 
 #: Cell edge of the automatic grid: the mean triangle edge (as the still body's).
 _CELL_PER_EDGE = 1.4
@@ -80,8 +85,6 @@ class MovingBodyCollider:
     """
 
     def __init__(self, verts, tris, box=None, active=None, cell=None, margin=None, piece=None):
-        from vfit_engine.kernels import collide_mesh_build as B
-
         tris = np.ascontiguousarray(tris, dtype=np.int64)
         verts = as_points(verts, "verts")
         if tris.ndim != 2 or tris.shape[1] != 3 or tris.shape[0] == 0:
@@ -173,10 +176,6 @@ class MovingBodyCollider:
 
     def _whole_sides(self, verts, tris):
         """:attr:`_side` and :attr:`_listed` of the whole surface ``tris`` at ``verts``, still."""
-        from vfit_engine.kernels import collide_mesh as K
-        from vfit_engine.kernels import collide_mesh_build as B
-        from vfit_engine.kernels import collide_mesh_empty as E
-
         nt, nv, ncells = len(tris), len(verts), self.ncells
         tri_edges = np.empty_like(tris)
         ne = B.mesh_edges(tris, nv, tri_edges)
@@ -211,10 +210,6 @@ class MovingBodyCollider:
         near the surface over the interval and puts the geometry at the interval's start (``s = 0``).
         Replaces :attr:`grid`.
         """
-        import time
-
-        from vfit_engine.kernels import collide_mesh_sweep as S
-
         verts_next = as_points(verts_next, "verts")
         if verts_next.shape != self._v1.shape:
             raise InputError(f"verts must have shape {self._v1.shape}, got {verts_next.shape}")
@@ -235,12 +230,6 @@ class MovingBodyCollider:
 
     def _bin(self, v0, v1):
         """The lists of the interval ``v0`` -> ``v1`` and a new :attr:`grid` (its geometry not yet set)."""
-        import time
-
-        from vfit_engine.kernels import collide_mesh as K
-        from vfit_engine.kernels import collide_mesh_build as B
-        from vfit_engine.kernels import collide_mesh_sweep as S
-
         t0 = time.perf_counter()
         while True:
             if self._pairs is None or self._pairs[0].size < self._cap:
@@ -266,9 +255,6 @@ class MovingBodyCollider:
 
     def _sides(self):
         """The side of every empty cell of the new interval (carried, else queried at the interval's start)."""
-        from vfit_engine.kernels import collide_mesh as K
-        from vfit_engine.kernels import collide_mesh_sweep as S
-
         left = S.carry_signs(self.dims, self._cell_start, self._listed, self._side, self._queue)
         if left:
             empty = self._cell_start[1:] == self._cell_start[:-1]
@@ -285,26 +271,18 @@ class MovingBodyCollider:
 
     def _bounds(self):
         """``cell_sd`` / ``cell_sd_hi``: no bound for listed cells, ``reach`` on their side for empty ones."""
-        from vfit_engine.kernels import collide_mesh_sweep as S
-
         S.cell_bounds(self._cell_start, self._side, self.reach, self._lo, self._hi)
         self._exact_at = None
 
     # ------------------------------------------------------------------ substeps
     def _geometry(self, s):
         """The corner angles at the interval's start, then the geometry at ``s``."""
-        from vfit_engine.kernels import collide_mesh_sweep as S
-
         S.corner_angles(self._v0, self._grid_tris, self._angles)
         self.at(s)
 
     def at(self, s):
         """Put the surface where it is at time ``s`` (0..1) of the interval: the triangles' records and the
         pseudo-normals, in place. Sets :attr:`moved` to how far it moved since the last call (m)."""
-        import time
-
-        from vfit_engine.kernels import collide_mesh_sweep as S
-
         t0 = time.perf_counter()
         s = float(min(max(s, 0.0), 1.0))
         if self._exact_at is not None:  # the exact centre distances held at one time only
@@ -321,8 +299,6 @@ class MovingBodyCollider:
     def motion_bound(self, points):
         """(k,) m: how far the surface within ``field_cell`` of each of ``points`` (k, 3) m moved at most in the
         last :meth:`at` (the largest move anywhere for points off the grid)."""
-        from vfit_engine.kernels import collide_mesh_sweep as S
-
         p = np.ascontiguousarray(points, dtype=np.float64)
         out = np.empty(len(p))
         S.field_lookup(p, self.origin, self.field_cell, self._field_max, self.moved, out)
@@ -332,8 +308,6 @@ class MovingBodyCollider:
         """Exact centre distances for the cells with triangles, at the surface's current time (m): queries then
         dismiss points well clear of (or deep in) the body as a still body's grid does. Valid until the
         surface moves again (the next :meth:`at` or :meth:`advance`, which put the interval's bounds back)."""
-        from vfit_engine.kernels import collide_mesh_sweep as S
-
         S.listed_centre_sd(self._grid, self.reach, self._lo, self._hi)
         self._exact_at = self.s
 
@@ -346,8 +320,6 @@ class MovingBodyCollider:
     def query(self, points, max_out=0.05, max_in=0.05):
         """Closest point, signed distance, outward normal and triangle of each point, against the surface at
         the current time (:meth:`vfit_engine.collide.body_mesh.MeshCollider.query`)."""
-        from vfit_engine.kernels import collide_mesh as K
-
         points = as_points(points, "points")
         n = points.shape[0]
         d, closest, normal = np.empty(n), np.empty((n, 3)), np.empty((n, 3))

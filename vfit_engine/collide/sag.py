@@ -27,6 +27,9 @@ it. ``allowance`` is what the contact points' own clearance already covers.
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
+
+from vfit_engine.collide.body_mesh import mesh_normals
 
 #: The depth (m) a bump may still cut into a cloth resting on the worst-placed lattice, beyond the points'
 #: clearance: half the drape's 2 mm bar.
@@ -59,10 +62,6 @@ def convex_sag(verts, tris, radius, allowance, cap=SAG_CAP):
     -------
     (v,) float64, m, >= 0
     """
-    from scipy.spatial import cKDTree
-
-    from vfit_engine.collide.body_mesh import mesh_normals
-
     verts = np.ascontiguousarray(verts, dtype=np.float64)
     normals = mesh_normals(verts, tris)[3]
     sag = np.zeros(verts.shape[0])

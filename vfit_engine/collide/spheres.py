@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from vfit_engine.errors import InputError
+from vfit_engine.kernels.collide_sphere import collide_spheres
 
 
 class SphereCollider:
@@ -78,8 +79,6 @@ class SphereCollider:
     def project(self, x, x_prev, inv_mass):
         """Push particles out of the spheres in place (see
         :mod:`vfit_engine.kernels.collide_sphere` for the formula)."""
-        from vfit_engine.kernels.collide_sphere import collide_spheres
-
         collide_spheres(x, x_prev, inv_mass, *self.sphere_arrays())
 
     def signed_distance(self, x):

@@ -12,8 +12,13 @@ import time
 
 import numpy as np
 
+from vfit_engine.body.model import N_BODY
+from vfit_engine.body.segment import segment
+from vfit_engine.collide.auto_spheres import fit_spheres
+from vfit_engine.collide.bone_spheres import fit_bone_spheres, skeleton_bones
+from vfit_engine.collide.ellipsoids import fit_ellipsoids
+from vfit_engine.collide.hulls import fit_hulls
 from vfit_engine.errors import InputError
-
 
 #: Body colliders of :func:`drape`: the exact body mesh, or shapes fitted to the body.
 COLLIDERS = ("mesh", "spheres", "bone-spheres", "ellipsoids", "hulls")
@@ -73,17 +78,11 @@ def fitted_collider(kind, model, body, mesh_collider, settings):
     project : LimitedPush or None
         An ellipsoid or hull collider.
     """
-    from vfit_engine.body.model import N_BODY
-
     body_verts, body_tris = body.surface, model.body_tris
     if kind in ("spheres", "bone-spheres"):
         if kind == "spheres":
-            from vfit_engine.collide.auto_spheres import fit_spheres
-
             centres, radii = fit_spheres(body_verts, body_tris, mesh_collider)
         else:
-            from vfit_engine.collide.bone_spheres import fit_bone_spheres, skeleton_bones
-
             if not body.has_helpers:
                 raise InputError("the bone-spheres collider needs the body's helper vertices (its skeleton): "
                                  "build the body from measurements instead of reading it from a file")
@@ -93,17 +92,12 @@ def fitted_collider(kind, model, body, mesh_collider, settings):
         return np.ascontiguousarray(np.column_stack([centres, radii])), None
     if kind not in ("ellipsoids", "hulls"):
         raise InputError(f"unknown collider {kind!r}; use one of {', '.join(COLLIDERS)}")
-    from vfit_engine.body.segment import segment
 
     seg = segment(model, body.verts)
     labels = np.asarray(seg.labels, dtype=np.int64)[:N_BODY]
     c = settings.contact
     if kind == "ellipsoids":
-        from vfit_engine.collide.ellipsoids import fit_ellipsoids
-
         inner = fit_ellipsoids(body_verts, labels, seg.names, skin=settings.sphere_skin / 2, friction=c.friction)
     else:
-        from vfit_engine.collide.hulls import fit_hulls
-
         inner = fit_hulls(body_verts, labels, seg.names, body_tris=body_tris, skin=c.skin, friction=c.friction)
     return None, LimitedPush(inner, settings.push_start)

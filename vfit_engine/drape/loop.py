@@ -22,7 +22,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vfit_engine.drape.metrics import drape_metrics
+from vfit_engine.drape.refine import refine_setup
+from vfit_engine.drape.settings import DrapeSettings
 from vfit_engine.errors import VfitError
+from vfit_engine.sim.contact_points import contact_points
+from vfit_engine.sim.model import Model
+from vfit_engine.sim.solver_verlet import SolverVerlet
+from vfit_engine.sim.springs import STRUCTURAL
+from vfit_engine.sim.untangle import untangle
 
 
 class DrapeDiverged(VfitError):
@@ -92,10 +100,6 @@ def build_solver(setup, settings, garment=None):
     """The cloth model and solver of a drape (step 1). ``garment``: the setup of the garment as given when
     ``setup`` is its subdivided cloth (:mod:`vfit_engine.drape.refine`): the garment's own polygons, flat
     between its vertices, are held out of the body too (the drape is read back on them)."""
-    from vfit_engine.sim.contact_points import contact_points
-    from vfit_engine.sim.model import Model
-    from vfit_engine.sim.solver_verlet import SolverVerlet
-
     fv, fo = setup.garment.mesh.face_verts, setup.garment.mesh.face_offsets
     model = Model.from_polygons(fv, fo, setup.rest, setup.material, pin_indices=setup.pins.indices)
     surface = settings.surface_spacing > 0
@@ -121,9 +125,6 @@ def build_solver(setup, settings, garment=None):
 
 def _untangled_start(setup, settings, model):
     """The start moved out of the body (step 2), pins on their targets; (positions, info)."""
-    from vfit_engine.garment.springs import STRUCTURAL
-    from vfit_engine.sim.untangle import untangle
-
     start = setup.start.copy()
     start[setup.pins.indices] = setup.pins.targets
     if not (settings.untangle and setup.collider_kind == "mesh"):
@@ -203,15 +204,10 @@ def run_drape(setup, settings=None, on_frame=None):
     ------
     DrapeDiverged
     """
-    from vfit_engine.drape.metrics import drape_metrics
-    from vfit_engine.drape.settings import DrapeSettings
-
     st = settings or DrapeSettings()
     t0 = time.perf_counter()
     sim, n = setup, setup.garment.mesh.n_verts  # sim: the cloth simulated; its first n vertices are the garment's
     if st.refine:
-        from vfit_engine.drape.refine import refine_setup
-
         sim, _ = refine_setup(setup, st.refine)
     model, solver = build_solver(sim, st, garment=setup if st.refine else None)
     start, untangle_info = _untangled_start(sim, st, model)

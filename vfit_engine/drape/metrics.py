@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from vfit_engine.body.segment import PARTS
+
 #: Smallest lattice order of the surface samples (3: corners, two points per edge, the centroid).
 SURFACE_ORDER = 3
 #: Largest spacing of the surface samples along a triangle's longest edge, m.
@@ -174,8 +176,6 @@ def strain_by_part(setup, pos, edge_strain):
     edge_strain : (E,) float64
         :func:`yarn_strain`'s per edge of ``setup.garment.mesh.edges()``.
     """
-    from vfit_engine.body.segment import PARTS
-
     if setup.body_parts is None:
         return {}
     mesh = setup.garment.mesh

@@ -18,9 +18,10 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from scipy.sparse import csr_matrix, identity
 
-#: Most levels (each multiplies the polygons by ~4 and the time by ~3-5: 2.3-3.7 per frame, and more frames to settle).
-MAX_LEVELS = 2
+from vfit_engine.drape.setup import Pins
+from vfit_engine.io.meshdata import MeshData
 
 
 def subdivide(mesh):
@@ -39,10 +40,6 @@ def subdivide(mesh):
     weights : scipy.sparse.csr_matrix, (n_fine, n)
         ``fine.verts = weights @ mesh.verts``.
     """
-    from scipy.sparse import csr_matrix
-
-    from vfit_engine.io.mesh import MeshData
-
     n = mesh.n_verts
     fo, fv = np.asarray(mesh.face_offsets, np.int64), np.asarray(mesh.face_verts, np.int64)
     sizes = np.diff(fo)
@@ -70,10 +67,6 @@ def subdivide(mesh):
 def refine_setup(setup, levels):
     """The :class:`~vfit_engine.drape.setup.DrapeSetup` of the cloth subdivided ``levels`` times; with the
     (n_fine, n) map of the garment's vertices to the fine ones (module docstring)."""
-    from scipy.sparse import identity
-
-    from vfit_engine.drape.setup import Pins
-
     mesh, weights = setup.garment.mesh, identity(setup.garment.mesh.n_verts, format="csr")
     for _ in range(int(levels)):
         mesh, w = subdivide(mesh)

@@ -28,7 +28,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vfit_engine.body.resolve import default_body
+from vfit_engine.body.segment import skin_parts
+from vfit_engine.collide.body_mesh import MeshCollider
+from vfit_engine.drape.colliders import COLLIDERS, fitted_collider
+from vfit_engine.drape.settings import DrapeSettings
 from vfit_engine.errors import InputError
+from vfit_engine.garment.openings import BodyLoops, check_openings, fit_openings
+from vfit_engine.garment.pin_fit import PinAttachment, fit_pins
+from vfit_engine.garment.pins import auto_pins
+from vfit_engine.garment.placement import made_on, place_garment
+from vfit_engine.garment.transfer import transfer_garment
+from vfit_engine.sim.materials import resolve_material
 
 #: How the cloth's rest lengths are chosen (module docstring, step 3).
 REST_MODES = ("garment", "graded")
@@ -154,16 +165,6 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
     -------
     DrapeSetup
     """
-    from vfit_engine.body.resolve import default_body
-    from vfit_engine.body.segment import skin_parts
-    from vfit_engine.collide.body_mesh import MeshCollider
-    from vfit_engine.drape.colliders import COLLIDERS, fitted_collider
-    from vfit_engine.drape.settings import DrapeSettings
-    from vfit_engine.garment.openings import BodyLoops, check_openings, fit_openings
-    from vfit_engine.garment.placement import made_on, place_garment
-    from vfit_engine.garment.transfer import transfer_garment
-    from vfit_engine.sim.materials import resolve_material
-
     t0 = time.perf_counter()
     st = settings or DrapeSettings()
     if rest not in REST_MODES:
@@ -205,9 +206,6 @@ def prepare_drape(garment, body, model, reference=None, material="cotton", pin="
 
 def _pins(garment, rest_pos, placed, start, body, reference, tris, pin, graded, st):
     """Pins (indices, targets on ``body``) of the garment (module docstring, step 4)."""
-    from vfit_engine.garment.pin_fit import PinAttachment, fit_pins
-    from vfit_engine.garment.pins import auto_pins
-
     mesh = garment.mesh
     info = None
     if isinstance(pin, str) and pin == "auto":

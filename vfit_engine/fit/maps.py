@@ -33,6 +33,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from vfit_engine.drape.metrics import corner_angles, vertex_strain
+from vfit_engine.sim.springs import polygon_areas
+
 #: Distance within which a vertex counts as resting on the body, mm (the contact skin is 2-3 mm).
 CONTACT_MM = 5.0
 #: ``ease_mm`` is exact up to this distance from the body, m; farther cloth reads this value.
@@ -46,8 +49,6 @@ MAP_UNITS = {"strain": "fraction", "shear_deg": "deg", "ease_mm": "mm", "pressur
 def edge_area_shares(mesh):
     """(E,) float64, m^2: each edge's share of the rest area, sum of 2 A_f / n_f over its polygons
     (``mesh.edges()`` order): a square grid's edge of side h gets h^2, a strip h wide."""
-    from vfit_engine.garment.springs import polygon_areas
-
     edges = mesh.edges()
     fo, fv = mesh.face_offsets, mesh.face_verts
     sizes = np.diff(fo)
@@ -66,8 +67,6 @@ def edge_area_shares(mesh):
 
 def vertex_areas(mesh, pos):
     """(n,) float64, m^2: each vertex's share of the polygons' area at ``pos`` (A_f / n_f per corner)."""
-    from vfit_engine.garment.springs import polygon_areas
-
     sizes = mesh.face_sizes()
     area = polygon_areas(mesh.face_verts, mesh.face_offsets, pos)
     return np.bincount(mesh.face_verts, weights=np.repeat(area / sizes, sizes), minlength=mesh.n_verts)
@@ -117,8 +116,6 @@ def contact_pressure(mesh, pos, stiffness, areal_density, normals, contact, grav
 
 def vertex_shear_deg(mesh, pos):
     """(n,) float64, deg: the largest change of a polygon corner angle at each vertex."""
-    from vfit_engine.drape.metrics import corner_angles
-
     d = np.degrees(np.abs(corner_angles(pos, mesh.face_verts, mesh.face_offsets)
                           - corner_angles(mesh.verts, mesh.face_verts, mesh.face_offsets)))
     out = np.zeros(mesh.n_verts)
@@ -129,8 +126,6 @@ def vertex_shear_deg(mesh, pos):
 def fit_maps(setup, pos):
     """All the maps (module docstring) of a drape of ``setup`` (:class:`vfit_engine.drape.DrapeSetup`)
     ending at ``pos`` (n, 3) m: dict name -> (n,) float64, in :data:`MAP_NAMES` order."""
-    from vfit_engine.drape.metrics import vertex_strain
-
     pos = np.ascontiguousarray(pos, dtype=np.float64)
     mesh = setup.garment.mesh
     d, _, normal, tri = setup.collider.query(pos, max_out=EASE_REACH, max_in=EASE_REACH)

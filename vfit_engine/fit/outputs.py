@@ -9,7 +9,11 @@ from __future__ import annotations
 
 import os
 
+from vfit_engine.body.bodyio import body_mesh
 from vfit_engine.fit.maps import MAP_UNITS
+from vfit_engine.io.gltf import ScenePart, write_scene_glb
+from vfit_engine.io.ply import write_ply
+from vfit_engine.preview import colour_map, render_views
 
 #: ``--map`` name -> the fit map drawn, the colour bar's label and unit, the colour map and its range.
 PICTURE_MAPS = {
@@ -22,8 +26,6 @@ PICTURE_MAPS = {
 
 def map_colours(maps, name):
     """(n, 3) float sRGB colours of the fit map ``name`` (a key of :data:`PICTURE_MAPS`)."""
-    from vfit_engine.preview import colour_map
-
     spec = PICTURE_MAPS[name]
     return colour_map(maps[spec["key"]], spec["cmap"], spec["vmin"], spec["vmax"])
 
@@ -31,8 +33,6 @@ def map_colours(maps, name):
 def write_fit_ply(path, setup, pos, maps):
     """``fit.ply``: the draped garment (metres, its vertex order and polygons) with the maps as float
     vertex properties (:data:`vfit_engine.fit.maps.MAP_NAMES`; units in the header's comments)."""
-    from vfit_engine.io.ply import write_ply
-
     units = ", ".join(f"{k} {MAP_UNITS[k]}" for k in maps)
     header = [f"vfit fit maps of {os.path.basename(str(setup.garment.source))} on the "
               f"{setup.body.description.get('source')} body; metres, Y up", f"vertex properties: {units}",
@@ -43,9 +43,6 @@ def write_fit_ply(path, setup, pos, maps):
 
 def write_scene(path, setup, pos, model, maps, name="strain"):
     """``scene.glb``: the body (hm08, UVs) and the draped garment (its UVs) coloured by the map ``name``."""
-    from vfit_engine.body.bodyio import body_mesh
-    from vfit_engine.io.gltf import ScenePart, write_scene_glb
-
     write_scene_glb(path, [ScenePart("body", body_mesh(model, setup.body.verts)),
                            ScenePart("garment", setup.garment.mesh, pos, colors=map_colours(maps, name))])
 
@@ -53,8 +50,6 @@ def write_scene(path, setup, pos, model, maps, name="strain"):
 def write_preview(path, setup, pos, model, maps, name="strain", title=None):
     """``preview.png``: body and garment from the front, the side and the back, the garment coloured by the
     map ``name`` with a colour bar in its unit."""
-    from vfit_engine.preview import render_views
-
     spec = PICTURE_MAPS[name]
     garment = os.path.basename(str(setup.garment.source))
     render_views(path, setup.body.surface, model.body_tris, pos, setup.garment.mesh.triangles(),

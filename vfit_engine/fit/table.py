@@ -34,8 +34,14 @@ draped length over its length as given), ``max_strain`` (the largest yarn strain
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import ConvexHull, cKDTree
 
+from vfit_engine.body.measure import Measurer
+from vfit_engine.body.segment import PARTS
 from vfit_engine.fit.maps import fit_maps
+from vfit_engine.garment.openings import BodyLoops, check_openings
+from vfit_engine.geometry import winding_number
+from vfit_engine.section import MeshSections, rotation_to_y
 
 #: Half-width of the band round a region's plane whose edges give its strain, m.
 BAND = 0.02
@@ -56,8 +62,6 @@ KEY_REGIONS = ("bust", "chest", "waist", "hips")
 
 def _hull(points_xz):
     """Convex hull of (k, 2) points: (hull points (h, 2), perimeter m, equations (h, 3)) or None."""
-    from scipy.spatial import ConvexHull
-
     if len(points_xz) < 3:
         return None
     try:
@@ -71,8 +75,6 @@ class _Plane:
     """A cutting plane through ``centre`` with unit ``normal``, and the frame that makes it horizontal."""
 
     def __init__(self, centre, normal):
-        from vfit_engine.section import rotation_to_y
-
         self.centre = np.asarray(centre, dtype=np.float64)
         self.normal = np.asarray(normal, dtype=np.float64) / np.linalg.norm(normal)
         self.rot = rotation_to_y(self.normal)
@@ -84,8 +86,6 @@ class _Plane:
         none of whose points lies farther than ``reach`` (m) from it, outermost first. With ``half_width``
         (m) the hull takes only the loop's points within it of the centre across (x): a loose top's loop
         at the chest runs out along the sleeves, which are no part of the chest."""
-        from vfit_engine.geometry import winding_number
-
         out = []
         for loop in sections.loops(np.ascontiguousarray(verts @ self.rot.T), self.height):
             if len(loop) < 3 or np.max(np.linalg.norm(loop - self.centre_xz, axis=1)) > reach:
@@ -101,8 +101,6 @@ class _Plane:
 
 def _limb_planes(model, verts):
     """(name, side, plane, reach) of the neck and both upper arms and thighs, from MakeHuman's rulers."""
-    from scipy.spatial import cKDTree
-
     tree = cKDTree(verts)
     out = []
     for name, ruler in LIMBS:
@@ -140,9 +138,6 @@ class FitTable:
     """Builds the fit table of drapes on one body (the body's sections and planes are built once)."""
 
     def __init__(self, body, model):
-        from vfit_engine.body.measure import Measurer
-        from vfit_engine.garment.openings import BodyLoops
-
         self.measurer = Measurer(model)
         model = self.measurer.model  # loaded by the Measurer when not given
         self.body_verts = np.ascontiguousarray(body.surface, dtype=np.float64)
@@ -193,8 +188,6 @@ class FitTable:
 
     def rows(self, setup, pos, maps=None):
         """The table (module docstring) of ``setup``'s garment at ``pos``: list of dict."""
-        from vfit_engine.section import MeshSections
-
         pos = np.ascontiguousarray(pos, dtype=np.float64)
         maps = maps if maps is not None else fit_maps(setup, pos)
         mesh = setup.garment.mesh
@@ -224,9 +217,6 @@ class FitTable:
 
     def _opening_rows(self, setup, pos, maps, limit):
         """Rows of the garment's openings that go round a body part, at the draped position."""
-        from vfit_engine.body.segment import PARTS
-        from vfit_engine.garment.openings import check_openings
-
         piece = setup.garment.pieces
         rows = []
         for o in check_openings(setup.garment.mesh, self.body_verts, setup.body_tris, pos=pos, loops=self.loops):

@@ -38,6 +38,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import ConvexHull
+
+from vfit_engine.body.levels import body_levels
+from vfit_engine.body.model import N_BODY, BodyModel, data_dir
+from vfit_engine.io.mesh import write_mesh
+from vfit_engine.io.meshdata import mesh_from_faces
+from vfit_engine.section import MeshSections
 
 #: The demo skirt's girths at the waist, the hips and the hem, and its length, m (module docstring).
 WAIST, HIPS, HEM, LENGTH = 0.74, 1.02, 2.40, 0.55
@@ -68,7 +75,7 @@ def flared_skirt(body_verts, body_tris, waist=WAIST, hips=HIPS, hem=HEM, length=
 
     Returns
     -------
-    vfit_engine.io.mesh.MeshData
+    vfit_engine.io.meshdata.MeshData
         ``rows * around`` vertices in rings from the waist down, each ring starting at the centre
         back and running round through the body's left (+x); ``(rows - 1) * around`` quads facing
         outward; UVs.
@@ -78,11 +85,6 @@ def flared_skirt(body_verts, body_tris, waist=WAIST, hips=HIPS, hem=HEM, length=
     ValueError
         The waist or hip girth leaves no ease on this body (at least 2 mm all round).
     """
-    from vfit_engine.body.levels import body_levels
-    from vfit_engine.body.model import N_BODY
-    from vfit_engine.io.mesh import mesh_from_faces
-    from vfit_engine.section import MeshSections
-
     v = np.ascontiguousarray(np.asarray(body_verts, dtype=np.float64)[:N_BODY])
     tris = np.asarray(body_tris, dtype=np.int64)
     lv = body_levels(v, tris)
@@ -146,8 +148,6 @@ def _perimeter(p):
 
 def _torso_section(sections, verts, y, cx):
     """The torso loop at height ``y`` and its convex hull, both (k, 2) (x, z) m, counter-clockwise."""
-    from scipy.spatial import ConvexHull
-
     loops = [p for p in sections.loops(verts, y) if len(p) >= 3 and p[:, 0].min() <= cx <= p[:, 0].max()]
     loop = max(loops, key=lambda q: np.ptp(q[:, 0]))
     area2 = np.sum(loop[:, 0] * np.roll(loop[:, 1], -1) - np.roll(loop[:, 0], -1) * loop[:, 1])
@@ -216,11 +216,8 @@ def tube_skirt(body_verts, body_tris, around=48, rows=10, clearance=0.03, below_
 
     Returns
     -------
-    vfit_engine.io.mesh.MeshData
+    vfit_engine.io.meshdata.MeshData
     """
-    from ..body.levels import body_levels
-    from ..io.mesh import mesh_from_faces
-
     lv = body_levels(body_verts, body_tris)
     top, bottom = lv["waist_y"], lv["crotch_y"] - below_crotch
     cx = lv["center_x"]
@@ -245,9 +242,6 @@ def tube_skirt(body_verts, body_tris, around=48, rows=10, clearance=0.03, below_
 def main(argv=None):
     """Write the demo skirt (:func:`flared_skirt` on the average female body) to ``argv[0]`` or
     ``data/garments/skirt.obj``."""
-    from ..body.model import BodyModel, data_dir
-    from ..io.mesh import write_mesh
-
     args = sys.argv[1:] if argv is None else argv
     out = Path(args[0]) if args else data_dir() / "garments" / "skirt.obj"
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -5,9 +5,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from vfit_engine.errors import InputError
-from vfit_engine.io.mesh import MAX_VERTS, MeshData, read_mesh
+from vfit_engine.garment.mhclo import parse_mhclo
+from vfit_engine.io.mesh import read_mesh
+from vfit_engine.io.meshdata import MAX_VERTS, MeshData
 from vfit_engine.units import LENGTH_UNITS
 
 #: A garment of more than this many pieces, with fewer than SOUP_FACES_PER_PIECE faces each on average, is
@@ -73,8 +77,6 @@ class Garment:
         """
         if getattr(self, "_binding", False) is not False:
             return self._binding
-        from vfit_engine.errors import InputError
-        from vfit_engine.garment.mhclo import parse_mhclo
 
         self._binding = None
         if self.mhclo_path is not None:
@@ -136,9 +138,6 @@ def _small_for_units(verts, height, units, body, body_height_m):
 
 def piece_labels(n_verts, edges):
     """(n,) int64 connected-component label of every vertex; labels ordered by first vertex."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n_verts, n_verts))
     _, lab = connected_components(g, directed=False)

@@ -17,13 +17,15 @@ body rotated so that plane is horizontal for :class:`vfit_engine.section.MeshSec
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
+from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import ConvexHull
 
 from vfit_engine.geometry import closed_loops, winding_number
+from vfit_engine.section import MeshSections, rotation_to_y
 
 
 def _hull_perimeter(p):
-    from scipy.spatial import ConvexHull
-
     if len(p) < 3:
         return 0.0
     try:
@@ -39,8 +41,6 @@ class BodyLoops:
     :func:`check_openings` and :func:`fit_openings`."""
 
     def __init__(self, body_verts, body_tris):
-        from vfit_engine.section import MeshSections
-
         self.body = np.ascontiguousarray(body_verts, dtype=np.float64)
         self.sections = MeshSections(body_tris, self.body.shape[0])
 
@@ -48,10 +48,6 @@ class BodyLoops:
         """Convex hulls of the body loop the opening ``p`` (L, 3) encircles, in planes parallel to its
         best-fit plane shifted by ``offsets`` (m): ``[(offset, hull (h, 2), frame)]`` with the hull in the
         plane's coordinates and ``frame = (rotation (3, 3), centre (3,))`` mapping them back."""
-        from scipy.spatial import ConvexHull
-
-        from vfit_engine.section import rotation_to_y
-
         centre = p.mean(axis=0)
         _, _, vt = np.linalg.svd(p - centre)
         rot = rotation_to_y(vt[2])
@@ -129,9 +125,6 @@ def zone_distance(mesh, loop, width):
     source : (n,) int64
         The loop vertex each zone vertex is nearest to (-1 beyond ``width``).
     """
-    from scipy import sparse
-    from scipy.sparse.csgraph import dijkstra
-
     e = mesh.edges()
     n = mesh.n_verts
     length = np.linalg.norm(mesh.verts[e[:, 1]] - mesh.verts[e[:, 0]], axis=1)

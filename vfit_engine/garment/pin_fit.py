@@ -30,6 +30,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
+from scipy.sparse.csgraph import connected_components
+
+from vfit_engine.garment.pins import attach_to_body, attached_positions
+from vfit_engine.geometry import closed_loops
+from vfit_engine.sim.springs import build_springs
 
 
 @dataclass
@@ -63,8 +69,6 @@ class PinAttachment:
     @classmethod
     def attach(cls, garment_pos, indices, body_verts, body_tris):
         """Bind ``garment_pos[indices]`` (m) to the body ``body_verts`` (m), ``body_tris``."""
-        from vfit_engine.garment.pins import attach_to_body, attached_positions
-
         idx = np.asarray(indices, dtype=np.int64).ravel()
         pts = np.asarray(garment_pos, dtype=np.float64)[idx]
         tri, bary = attach_to_body(pts, body_verts, body_tris)
@@ -78,8 +82,6 @@ class PinAttachment:
 
     def positions(self, body_verts, body_tris, min_offset=0.0):
         """(p, 3) float64 m: the pins on ``body_verts`` (same topology), height >= ``min_offset``."""
-        from vfit_engine.garment.pins import attached_positions
-
         foot = attached_positions(self.tri, self.bary, body_verts, body_tris)
         local = self.local.copy()
         local[:, 2] = np.maximum(local[:, 2], min_offset)
@@ -114,8 +116,6 @@ def pinned_loops(mesh, idx, min_share=0.5):
         The pinned vertices of each loop in walking order and the rest arc length (m) from each
         to the next one along the loop (the last wraps to the first).
     """
-    from vfit_engine.geometry import closed_loops
-
     pinned = np.zeros(mesh.n_verts, dtype=bool)
     pinned[idx] = True
     out = []
@@ -138,8 +138,6 @@ def _loop_length(p):
 
 def _lift_out(p, body_verts, body_tris, skin):
     """``p`` (q, 3) m with every point within ``skin`` of the body moved out along its triangle's normal."""
-    from vfit_engine.garment.pins import attach_to_body, attached_positions
-
     tri, bary = attach_to_body(p, body_verts, body_tris)
     foot = attached_positions(tri, bary, body_verts, body_tris)
     n = _tri_frames(body_verts, body_tris, tri)[:, 2]
@@ -174,8 +172,6 @@ def fit_loop(att, body_verts, body_tris, rest_gaps, skin):
     skin : float, m
         Least height of a pin above the body.
     """
-    from vfit_engine.garment.pins import attached_positions
-
     rest = float(np.sum(rest_gaps))
     off = att.offset
     foot = attached_positions(att.tri, att.bary, body_verts, body_tris)
@@ -219,8 +215,6 @@ def release_stretched(mesh, idx, target, pin_strain, groups=None, springs=None):
     -------
     (p,) bool
     """
-    from vfit_engine.garment.springs import build_springs
-
     # every spring pair (edges, quad diagonals, second neighbours), so that a released pin
     # is not left between two pins that are still too far apart
     edges = build_springs(mesh.face_verts, mesh.face_offsets, mesh.verts).indices if springs is None else springs
@@ -265,8 +259,6 @@ def fit_pins(mesh, idx, att, body_verts, body_tris, skin, pin_strain, fit_strain
         ``released_stretched``, ``refitted_groups`` (loops and patches) and ``lifted_for_chords``
         (:func:`lift_chords`) counts.
     """
-    from vfit_engine.garment.springs import build_springs
-
     target = att.positions(body_verts, body_tris, min_offset=skin)
     groups = np.full(idx.size, -1, dtype=np.int64)
     refitted = 0
@@ -323,8 +315,6 @@ def lift_chords(mesh, idx, target, body_verts, body_tris, skin):
     lifted : int
         Pins lifted.
     """
-    from vfit_engine.garment.pins import attach_to_body, attached_positions
-
     target = np.array(target, dtype=np.float64)
     slot = np.full(mesh.n_verts, -1, dtype=np.int64)
     slot[idx] = np.arange(idx.size)
@@ -367,9 +357,6 @@ def _pair_strain(mesh, springs, pins, target):
 
 def _patches(springs, idx, groups):
     """Connected groups (index arrays into ``idx``) of the pins not yet in a group, joined by springs."""
-    from scipy import sparse
-    from scipy.sparse.csgraph import connected_components
-
     free = groups < 0
     slot = np.full(int(max(springs.max(), idx.max())) + 1, -1, dtype=np.int64)
     slot[idx[free]] = np.arange(int(free.sum()))
@@ -391,8 +378,6 @@ def fit_patch(rest_pos, follow, body_verts, body_tris, skin):
     triangle-following targets (``follow``) keep every distance between the pins; a target then
     within the skin of the body is lifted out along its triangle's normal.
     """
-    from vfit_engine.garment.pins import attach_to_body, attached_positions
-
     ca, cb = rest_pos.mean(axis=0), follow.mean(axis=0)
     u, _, vt = np.linalg.svd((rest_pos - ca).T @ (follow - cb))
     d = np.sign(np.linalg.det(u @ vt))

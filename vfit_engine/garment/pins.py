@@ -18,10 +18,12 @@ Pins per piece (``auto_pins``), at the body levels of :func:`vfit_engine.body.le
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from vfit_engine.body.levels import Sections, body_center_xz, body_levels
 from vfit_engine.errors import InputError
-from vfit_engine.geometry import boundary_loops, vertex_normals, winding_number
+from vfit_engine.garment.garment import piece_labels
+from vfit_engine.geometry import boundary_loops, closest_point_barycentric, vertex_normals, winding_number
 
 #: Smallest Y component of the body normal counted as "facing up" in the shoulder region.
 SHOULDER_MIN_NORMAL_Y = 0.7
@@ -46,8 +48,6 @@ def _waist_loop(mesh, mask, surf, sec, x_c):
 
 
 def _shoulder_pins(mesh, mask, v, surf_idx, normals, levels):
-    from scipy.spatial import cKDTree
-
     lo, hi = levels["armpit_y"], levels["neck_y"]
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return np.zeros(0, np.int64)
@@ -89,7 +89,6 @@ def auto_pins(mesh, body_verts, body_tris, kind="auto", pieces=None):
     """
     if kind not in ("auto", "top", "bottom"):
         raise ValueError(f"kind must be auto, top or bottom, not {kind!r}")
-    from vfit_engine.garment.garment import piece_labels
 
     v = np.asarray(body_verts, dtype=np.float64)
     tris = np.asarray(body_tris, dtype=np.int64)
@@ -137,50 +136,6 @@ def auto_pins(mesh, body_verts, body_tris, kind="auto", pieces=None):
     return pin_idx.astype(np.int64), info
 
 
-def closest_point_barycentric(p, a, b, c):
-    """Barycentric coordinates (k, 3) of the closest point on triangles (a, b, c) to points p.
-
-    All inputs (k, 3) float64. Region tests after Ericson, Real-Time Collision Detection (2005) 5.1.5.
-    """
-    ab, ac, ap = b - a, c - a, p - a
-    d1 = np.einsum("ij,ij->i", ab, ap)
-    d2 = np.einsum("ij,ij->i", ac, ap)
-    bp = p - b
-    d3 = np.einsum("ij,ij->i", ab, bp)
-    d4 = np.einsum("ij,ij->i", ac, bp)
-    cp = p - c
-    d5 = np.einsum("ij,ij->i", ab, cp)
-    d6 = np.einsum("ij,ij->i", ac, cp)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    out = np.empty((p.shape[0], 3))
-    denom = va + vb + vc
-    denom = np.where(denom != 0, denom, 1.0)
-    out[:, 1] = vb / denom
-    out[:, 2] = vc / denom
-    out[:, 0] = 1.0 - out[:, 1] - out[:, 2]
-
-    def put(mask, w):
-        out[mask] = w[mask] if w.ndim == 2 else w
-
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # edge regions (checked before vertex regions, which override them)
-        m_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
-        t = np.clip((d4 - d3) / ((d4 - d3) + (d5 - d6)), 0, 1)
-        put(m_bc, np.stack([np.zeros_like(t), 1 - t, t], 1))
-        m_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-        t = np.clip(d2 / (d2 - d6), 0, 1)
-        put(m_ac, np.stack([1 - t, np.zeros_like(t), t], 1))
-        m_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-        t = np.clip(d1 / (d1 - d3), 0, 1)
-        put(m_ab, np.stack([1 - t, t, np.zeros_like(t)], 1))
-    put((d6 >= 0) & (d5 <= d6), np.array([0.0, 0.0, 1.0]))
-    put((d3 >= 0) & (d4 <= d3), np.array([0.0, 1.0, 0.0]))
-    put((d1 <= 0) & (d2 <= 0), np.array([1.0, 0.0, 0.0]))
-    return out
-
-
 def attach_to_body(points, body_verts, body_tris, candidates=16):
     """Nearest body triangle and barycentric coordinates of each point.
 
@@ -199,8 +154,6 @@ def attach_to_body(points, body_verts, body_tris, candidates=16):
     bary : (p, 3) float64
         Non-negative, summing to 1.
     """
-    from scipy.spatial import cKDTree
-
     pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
     v = np.asarray(body_verts, dtype=np.float64)
     tris = np.asarray(body_tris, dtype=np.int64)

@@ -18,8 +18,11 @@ beside the same distances on vfit's bodies (:func:`made_on`).
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from vfit_engine.errors import InputError
+from vfit_engine.garment.mhclo import MHCLO_UNIT, evaluate_mhclo
+from vfit_engine.units import LENGTH_UNITS
 
 #: Mean distance (m) between a garment file and its binding's fit above which the file is taken to be
 #: somewhere else (the MakeHuman suits deviate by 9-17 mm on vfit's average bodies).
@@ -59,8 +62,6 @@ def place_garment(garment_verts, reference, binding=None, name="garment"):
     InputError
         The garment is away from the body and has no binding to place it with.
     """
-    from vfit_engine.garment.mhclo import evaluate_mhclo
-
     pos = np.ascontiguousarray(garment_verts, dtype=np.float64)
     info = dict(placed="file", file_gap_mm=None)
     if binding is not None and reference.has_helpers:
@@ -91,9 +92,6 @@ def made_on(binding, reference, body=None):
         ``reference_cm`` (the same two vertices on ``reference``, the body it is placed on) and, with
         ``body``, ``body_cm`` (the body draped on); None without a binding or scale lines.
     """
-    from vfit_engine.garment.mhclo import MHCLO_UNIT
-    from vfit_engine.units import LENGTH_UNITS
-
     if binding is None or not binding.scales:
         return None
     out = {}
@@ -111,8 +109,6 @@ def made_on(binding, reference, body=None):
 
 def _near_gap(points, body):
     """Distance (m) to the nearest body vertex within which NEAR_SHARE of ``points`` lie."""
-    from scipy.spatial import cKDTree
-
     if not len(points):
         return 0.0
     d, _ = cKDTree(body).query(points)

@@ -26,20 +26,18 @@ vertices, when given, are ignored there.
 """
 from __future__ import annotations
 
+import time
 from functools import lru_cache
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from vfit_engine.body.model import N_BODY, N_VERTS, BodyModel
+from vfit_engine.collide.body_mesh import mesh_normals
 from vfit_engine.errors import InputError
-from vfit_engine.garment.arap import (
-    arap_rotations,
-    check_points,
-    cotangent_weights,
-    dual_quat_to_rigid,
-    edge_incidence,
-    rigid_to_dual_quat,
-)
+from vfit_engine.garment.arap import arap_rotations, check_points, cotangent_weights, edge_incidence
+from vfit_engine.garment.mhclo import evaluate_mhclo
+from vfit_engine.rotations import dual_quat_to_rigid, rigid_to_dual_quat
 
 METHODS = ("auto", "mhclo", "mhclo-delta", "dqs", "lbs", "none")
 #: Nearest body vertices per garment vertex; 6 is the sweet spot found by the garment-adaptation seed.
@@ -77,8 +75,6 @@ class BodyFrames:
     def tree(self):
         """scipy cKDTree over the source body vertices (built on first use)."""
         if self._tree is None:
-            from scipy.spatial import cKDTree
-
             self._tree = cKDTree(self.source)
         return self._tree
 
@@ -189,8 +185,6 @@ def blend_dqs(points, idx, weights, rot, source, target, dq=None):
 
 
 def _mhclo_fit(binding, body, which):
-    from vfit_engine.garment.mhclo import evaluate_mhclo
-
     top = binding.top_vertex
     if body.shape[0] <= top:
         raise InputError(
@@ -286,10 +280,6 @@ def restore_clearance(garment_verts, moved_verts, reference_verts, body_verts, b
     restored : (n,) float64, m
         Distance each vertex was moved out.
     """
-    from scipy.spatial import cKDTree
-
-    from vfit_engine.collide.body_mesh import mesh_normals
-
     ref = np.ascontiguousarray(reference_verts[:N_BODY], dtype=np.float64)
     body = np.ascontiguousarray(body_verts[:N_BODY], dtype=np.float64)
     src = np.asarray(garment_verts, dtype=np.float64)
@@ -335,8 +325,6 @@ def transfer_garment(garment_verts, reference_verts, body_verts, body_tris, meth
         identity and is not evaluated), ``time_s``, ``max_move_mm``, ``mean_move_mm``,
         ``clearance_restored_mm`` (max and mean over the vertices moved out; None when skipped).
     """
-    import time
-
     if method not in METHODS:
         raise InputError(f"unknown transfer method {method!r}; use one of {', '.join(METHODS)}")
     t0 = time.perf_counter()

@@ -27,8 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from vfit_engine.errors import InputError
+from vfit_engine.geometry import vertex_normals
 from vfit_engine.io.atomic import atomic_write
-from vfit_engine.io.mesh import MAX_VERTS, MeshData
+from vfit_engine.io.meshdata import MAX_VERTS, MeshData
 
 #: printf format of one coordinate (see the module docstring for why 9 digits).
 FLOAT_FORMAT = "%.9g"
@@ -341,8 +342,6 @@ def format_obj(mesh, header=None, mtllib=True, normals=True):
         parts.append(_floats_block("vt", np.asarray(mesh.uvs, dtype=np.float64)))
     normals = bool(normals and mesh.n_faces)
     if normals:
-        from vfit_engine.geometry import vertex_normals
-
         parts.append(_floats_block("vn", vertex_normals(verts, mesh.face_verts, mesh.face_offsets)))
     events = sorted(
         [(first, 0, f"o {name}\n") for name, first in mesh.objects]

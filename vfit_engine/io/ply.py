@@ -15,7 +15,7 @@ import numpy as np
 
 from vfit_engine.errors import InputError
 from vfit_engine.io.atomic import atomic_write
-from vfit_engine.io.mesh import MAX_VERTS, MeshData
+from vfit_engine.io.meshdata import MAX_VERTS, MeshData
 
 _TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",

@@ -4,7 +4,7 @@ NumPy's ``dot`` runs this product through a multithreaded BLAS whose cost on a b
 swings from 0.1 ms to 6 ms a call (measured; which call form is slow changes with the load), and the
 morph solver makes hundreds of them; a plain serial loop costs ~0.3 ms always.
 
-Importing this module imports numba; only body-shaping code imports it, lazily.
+Importing this module imports numba; only body-shaping code imports it.
 """
 from vfit_engine._jit import njit
 

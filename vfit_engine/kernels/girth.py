@@ -6,7 +6,7 @@ closed (its last point joins its first), which is what a tape does across an ope
 chain as well. Scratch buffers are passed in so that scanning many planes never
 allocates.
 
-Importing this module imports numba; only measurement code imports it, lazily.
+Importing this module imports numba; only measurement code imports it.
 """
 import math
 

@@ -14,7 +14,7 @@ through closed cloth) and no double hits. Each edge function is evaluated from i
 endpoints in vertex-index order and negated when needed, so the two triangles sharing an edge
 compute bit-for-bit opposite values. Triangles are two-sided (garments are open surfaces).
 
-Importing this module imports numba; only :mod:`vfit_engine.preview` imports it, lazily.
+Importing this module imports numba; only :mod:`vfit_engine.preview` imports it.
 """
 import math
 

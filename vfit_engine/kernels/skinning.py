@@ -14,7 +14,7 @@ DQS (Kavan et al. 2008, "Geometric Skinning with Approximate Dual Quaternion Ble
     r + eps d = sum_k s_k w_k (r_k + eps d_k) / |sum_k s_k w_k r_k|
     x' = R(r) x + t,   t = 2 vec(d r*) = 2 (r_w d_v - d_w r_v + r_v x d_v)
 
-Quaternions are (w, x, y, z), Hamilton, as in :mod:`vfit_engine.garment.arap`; the rotation of
+Quaternions are (w, x, y, z), Hamilton, as in :mod:`vfit_engine.rotations`; the rotation of
 ``x`` by the unit ``r = (w, u)`` is ``x + 2 u x (u x x + w x)``.
 
 The kernels are serial; see :mod:`vfit_engine.body.skinning` for the 2-core timings that decided it.

@@ -5,7 +5,7 @@ and ``dV/da = (b x c) / 6`` per corner, summed over a vertex's triangles. The su
 origin ``o`` (the first triangle's first vertex) to keep round-off small; V does not depend on it.
 The NumPy reference is :func:`vfit_engine.body.measure.enclosed_volume`.
 
-Importing this module imports numba; only measurement code imports it, lazily.
+Importing this module imports numba; only measurement code imports it.
 """
 from vfit_engine._jit import njit
 

@@ -175,7 +175,7 @@ def build_hinges(face_verts, face_offsets, rest_pos, rigidity, uvs=None, face_uv
     rigidity : float or (2,) float, N m
         Bending rigidity, or (warp, weft).
     uvs : (t, 2) float64 or None;  face_uvs : (k,) int64 or None
-        The garment's texture coordinates per face corner (``vfit_engine.io.mesh.MeshData``).
+        The garment's texture coordinates per face corner (``vfit_engine.io.meshdata.MeshData``).
     damping : float, s
         Hinge damping ``kd = damping k``.
 

@@ -17,6 +17,8 @@ import math
 
 import numpy as np
 
+from vfit_engine.sim.springs import BEND, SHEAR, STRUCTURAL
+
 #: Relaxation weights: stiffness / (this percentile of the family's stiffnesses), clipped to
 #: [RELAX_MIN, 1] (a few very stiff constraints must not make the rest converge slowly).
 RELAX_PERCENTILE = 90.0
@@ -112,8 +114,6 @@ def build_constraints(m, st):
     (:class:`VerletSettings`): stretch (structural springs), bend limits, shear limits (corner angles) and the
     compliant shear springs that restore the corners' angles; a :class:`Constraints`, in the model's order by
     kind."""
-    from vfit_engine.garment.springs import BEND, SHEAR, STRUCTURAL
-
     parts = [_distance_constraints(m, st, np.flatnonzero((m.spring_type == STRUCTURAL) & (m.spring_k > 0)),
                                    KIND_STRETCH)]
     if st.bend_limit is not None:
@@ -152,8 +152,6 @@ def _distance_constraints(m, st, springs, kind):
 
 def stretch_rigidity(m):
     """The fabric's typical stretch rigidity k l (N) in model ``m``: the median over its structural springs."""
-    from vfit_engine.garment.springs import STRUCTURAL
-
     sel = (m.spring_type == STRUCTURAL) & (m.spring_k > 0)
     return float(np.median(m.spring_k[sel] * m.spring_rest[sel])) if np.any(sel) else math.inf
 

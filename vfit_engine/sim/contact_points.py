@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vfit_engine.io.meshdata import MeshData
+
 
 @dataclass(frozen=True)
 class ContactPointSet:
@@ -84,8 +86,6 @@ def contact_points(face_verts, face_offsets, rest_pos, spacing=0.015, surface=Tr
     bary = [np.tile([1.0, 0.0, 0.0], (n, 1))]
     surface = bool(surface and len(face_offsets) > 1)
     if surface:
-        from vfit_engine.io.mesh import MeshData
-
         tris = MeshData(pos, np.asarray(face_offsets, np.int64), np.asarray(face_verts, np.int64)).triangles()
         v, b = _edge_points(tris, pos, spacing)
         verts.append(v)

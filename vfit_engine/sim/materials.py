@@ -27,7 +27,7 @@ JSON key                   field (SI)                      meaning
 How each reaches the cloth: the weight is the vertices' masses (each its share of the polygons'
 area); the bending rigidity is the hinges' stiffness (:mod:`vfit_engine.sim.bending`: exact on
 cylinders at any mesh spacing); the stretch and shear stiffnesses are the springs' and
-constraints' (:func:`vfit_engine.garment.springs.spring_constants`: ``k = K A_s / l0^2``, the same at any
+constraints' (:func:`vfit_engine.sim.springs.spring_constants`: ``k = K A_s / l0^2``, the same at any
 spacing), a woven kept near-inextensible by its stretch constraints at any step
 (:class:`vfit_engine.sim.solver_verlet.SolverVerlet`). ``friction`` is kept with the material but the drape's
 contacts do not take it yet: they hold 0.8, skin's grip on cloth where it is warm (0.8-0.9 on the chest,

@@ -12,6 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from vfit_engine.errors import InputError
+from vfit_engine.sim.bending import build_hinges
+from vfit_engine.sim.materials import resolve_material
+from vfit_engine.sim.springs import build_springs, polygon_corners, spring_constants, vertex_masses
 
 
 def _frozen(a, dtype, shape_tail=None, name="array"):
@@ -38,7 +41,7 @@ class Model:
     spring_k : (s,) float64, N/m
     spring_kd : (s,) float64, N s/m
     spring_type : (s,) int64
-        ``STRUCTURAL`` 0, ``SHEAR`` 1, ``BEND`` 2 (:mod:`vfit_engine.garment.springs`).
+        ``STRUCTURAL`` 0, ``SHEAR`` 1, ``BEND`` 2 (:mod:`vfit_engine.sim.springs`).
     mass : (n,) float64, kg
     inv_mass : (n,) float64, 1/kg
         0 for pinned particles (and particles of zero mass, which cannot move).
@@ -48,7 +51,7 @@ class Model:
         The material's largest wearable stretch (0.10 = 10 %).
     corners : (k, 3) int64
         Polygon corners whose angle shear changes: (previous, corner, next) vertex of every corner of
-        the polygons with 4 or more corners (:func:`vfit_engine.garment.springs.polygon_corners`).
+        the polygons with 4 or more corners (:func:`vfit_engine.sim.springs.polygon_corners`).
     hinges : Hinges or None
         The bending hinges (:mod:`vfit_engine.sim.bending`); None: the bend springs bend the cloth.
     """
@@ -135,7 +138,7 @@ class Model:
         ----------
         face_verts : (k,) int64
         face_offsets : (m + 1,) int64
-            Flat polygon list (:mod:`vfit_engine.garment.springs`).
+            Flat polygon list (:mod:`vfit_engine.sim.springs`).
         rest_pos : (n, 3) float64, m
         material : Material or str
             A :class:`vfit_engine.sim.materials.Material`, a preset name or a JSON path.
@@ -144,10 +147,6 @@ class Model:
             Texture coordinates per face corner: warp and weft follow them where they are a sewing
             pattern (:mod:`vfit_engine.sim.bending`).
         """
-        from vfit_engine.sim.bending import build_hinges
-        from vfit_engine.garment.springs import build_springs, polygon_corners, spring_constants, vertex_masses
-        from vfit_engine.sim.materials import resolve_material
-
         material = resolve_material(material)
         springs = build_springs(face_verts, face_offsets, rest_pos)
         k, kd = spring_constants(springs, material.stiffness, material.damping)

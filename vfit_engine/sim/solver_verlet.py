@@ -59,10 +59,20 @@ import dataclasses
 import math
 
 import numpy as np
+from scipy import sparse
+from scipy.sparse.csgraph import dijkstra
 
+from vfit_engine.collide.sag import SAG_TOLERANCE, convex_sag
+from vfit_engine.kernels.bending import eval_hinge_forces
+from vfit_engine.kernels.cloth import ClothArrays, ContactPoints, ContactState, StepParams, cloth_substeps
+from vfit_engine.kernels.collide_mesh import BodyGrid
+from vfit_engine.kernels.springs import eval_spring_forces
+from vfit_engine.sim.bending import hinge_gradient_norms
 from vfit_engine.sim.constraints import KIND_SHEAR, build_constraints
+from vfit_engine.sim.contact_points import contact_points
 from vfit_engine.sim.partition import halves, segment_of, segments
 from vfit_engine.sim.solver_settings import ContactSettings, VerletSettings  # noqa: F401  (the solver's API)
+from vfit_engine.sim.springs import SHEAR, STRUCTURAL
 from vfit_engine.sim.state import State
 
 
@@ -77,8 +87,6 @@ def _stable_scale(inv_mass, ksum, dsum, dt, safety):
 
 def _empty_grid():
     """A body grid with no triangles (the kernel's argument when there is no body mesh)."""
-    from vfit_engine.kernels.collide_mesh import BodyGrid
-
     z3, zi = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
     return BodyGrid(np.zeros((0, 16)), zi, z3, zi, z3, z3, np.zeros(3), np.ones(3, np.int64), 1.0, 1.0,
                     np.zeros(2, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(1))
@@ -106,8 +114,6 @@ class SolverVerlet:
 
     def __init__(self, model, settings=None, contact=None, body=None, spheres=None, points=None, colliders=(),
                  ground=None):
-        from vfit_engine.sim.contact_points import contact_points
-
         self.model = model
         self.settings = settings or VerletSettings()
         self.contact = contact or ContactSettings()
@@ -186,7 +192,6 @@ class SolverVerlet:
         is now (a moving body's keeps it: its bumps move with it, their shapes barely change); (0,): none."""
         if body is None or not self.contact.sag or not self.points.spacing > 0:
             return np.zeros(0)
-        from vfit_engine.collide.sag import SAG_TOLERANCE, convex_sag
 
         # the farthest a body point lies from the nearest point of the lattice; the points' own clearance
         # covers the rise up to it, and SAG_TOLERANCE more is left to cut in at worst
@@ -199,9 +204,6 @@ class SolverVerlet:
         Pins move the cloth and hold it up: a sweep that starts at them passes their pull on down
         the cloth within one sweep, where the vertex order may meet the pulled constraint last.
         """
-        from scipy import sparse
-        from scipy.sparse.csgraph import dijkstra
-
         vertices = np.asarray(vertices, dtype=np.int64)
         con = self._con
         if vertices.size == 0 or con.count == 0:
@@ -297,7 +299,6 @@ class SolverVerlet:
             The compliance of the hinges solved as constraints, 0 for the others.
         """
         m = self.model
-        from vfit_engine.garment.springs import SHEAR, STRUCTURAL
 
         k = np.array(m.spring_k)
         # the stretch constraints hold the stretch stiffness; with a shear limit the quads trellis
@@ -350,8 +351,6 @@ class SolverVerlet:
 
     def _hinge_gradient_norms(self):
         """(h, 4) float64, 1/m: |d theta / d x| of every hinge's vertices at rest."""
-        from vfit_engine.sim.bending import hinge_gradient_norms
-
         if self._hinge_g is None:
             h, pos = self.model.hinges, self.model.rest_pos
             self._hinge_g = hinge_gradient_norms(h.indices, pos)
@@ -375,7 +374,6 @@ class SolverVerlet:
     def _prepare(self, dt):
         if self._const_dt == dt:
             return
-        from vfit_engine.kernels.cloth import ClothArrays
 
         k, kd, hk, hkd, h_alpha = self.effective_constants(dt)
         keep = np.flatnonzero((k > 0) | (kd > 0))
@@ -430,9 +428,6 @@ class SolverVerlet:
         springs + gravity), so the first steps follow ``pos + vel t + a0 t^2 / 2`` (exactly, for
         free fall without air damping).
         """
-        from vfit_engine.kernels.bending import eval_hinge_forces
-        from vfit_engine.kernels.springs import eval_spring_forces
-
         dt = float(dt)
         self._prepare(dt)
         m = self.model
@@ -466,8 +461,6 @@ class SolverVerlet:
         return self._advance(state, float(frame_dt) / n_sub, n_sub)
 
     def _advance(self, state, dt, n_sub):
-        from vfit_engine.kernels.cloth import ContactPoints, ContactState, StepParams, cloth_substeps
-
         if not dt > 0:
             raise ValueError("dt must be > 0")
         m = self.model

@@ -13,8 +13,10 @@ result.
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
 
 from vfit_engine.geometry import PolygonNormals
+from vfit_engine.kernels.strain_limit import limit_strain
 
 
 def untangle(pos, face_verts, face_offsets, collider, spring_indices, max_len, skin, pinned=None,
@@ -55,10 +57,6 @@ def untangle(pos, face_verts, face_offsets, collider, spring_indices, max_len, s
         ``flip`` (True: the polygons wind inward, so the outward normal is minus
         :func:`vfit_engine.geometry.vertex_normals`).
     """
-    from scipy import sparse
-
-    from vfit_engine.kernels.strain_limit import limit_strain
-
     x = np.array(pos, dtype=np.float64, order="C")
     n = x.shape[0]
     free = np.ones(n, dtype=bool)

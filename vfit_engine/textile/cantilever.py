@@ -23,6 +23,11 @@ import time
 
 import numpy as np
 
+from vfit_engine.sim.model import Model
+from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
+from vfit_engine.sim.springs import grid_polygons
+from vfit_engine.textile.settle import fall_still
+
 #: The test's angle, degrees, and the strip's width, m.
 ANGLE = 41.5
 WIDTH = 0.025
@@ -35,9 +40,6 @@ def peirce_overhang(c, angle=ANGLE):
 
 
 def _strip_model(material, overhang, edge):
-    from vfit_engine.garment.springs import grid_polygons
-    from vfit_engine.sim.model import Model
-
     # columns at x = -h, 0 (on the platform, pinned), h, ..., n h; the clamp at -h / 2 (module docstring)
     n = max(2, int(math.ceil(overhang / edge - 0.5 - 1e-9)))
     h = overhang / (n + 0.5)
@@ -62,9 +64,6 @@ def droop(material, overhang, edge, max_time=20.0, still=2e-4, dt=None, implicit
         ``spacing_m``, ``dt_s``, ``sim_time_s``, ``vertices``, ``implicit_hinges`` and ``softened_hinges``
         (shares of the hinges; both 0: the rigidity is the material's explicit force everywhere).
     """
-    from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
-    from vfit_engine.textile.settle import fall_still
-
     model, h = _strip_model(material, overhang, edge)
     # damping near critical for the strip's first mode (omega ~ 3.5 sqrt(g / l) at the test's droop)
     settings = VerletSettings(air_damping=2.0 * 3.5 * math.sqrt(9.81 / overhang), shear_limit_deg=None,

@@ -26,6 +26,13 @@ import math
 import time
 
 import numpy as np
+from scipy.signal import find_peaks
+
+from vfit_engine.kernels.raster import rasterize
+from vfit_engine.sim.model import Model
+from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
+from vfit_engine.textile.settle import fall_still
+from vfit_engine.textile.specimen import annulus
 
 #: The specimen's and the support's radii, m (BS 5058: 30 and 18 cm).
 RADIUS = 0.15
@@ -46,9 +53,6 @@ def specimen_model(material, edge, seed=0):
     flat_m2, support_m2 : float
         The flat specimen's and the support's areas as meshed.
     """
-    from vfit_engine.sim.model import Model
-    from vfit_engine.textile.specimen import annulus
-
     rng = np.random.default_rng(seed)
     pos, fv, fo, ring = annulus(SUPPORT, RADIUS, edge)
     free = ring >= 2
@@ -75,8 +79,6 @@ def _polygon_area(ring):
 
 def shadow_area(pos, tris, pixel=PIXEL):
     """Area (m^2) of the union of the triangles ``tris`` (m, 3) at ``pos`` (n, 3) seen from above (along y)."""
-    from vfit_engine.kernels.raster import rasterize
-
     xz = pos[:, [0, 2]]
     lo = xz.min(axis=0) - 2 * pixel
     size = np.ceil((xz.max(axis=0) + 2 * pixel - lo) / pixel).astype(int)
@@ -105,8 +107,6 @@ def outline(pos, bins=360):
 def count_nodes(r, prominence=PROMINENCE):
     """Folds round the rim: circular maxima of the outline ``r`` (bins,) standing ``prominence`` (m), and a
     quarter of the outline's depth, above the troughs either side (a fold's shoulder is not a fold)."""
-    from scipy.signal import find_peaks
-
     n = r.size
     prominence = max(prominence, 0.25 * float(r.max() - r.min()))
     peaks, _ = find_peaks(np.r_[r, r, r], prominence=prominence)
@@ -125,9 +125,6 @@ def drape_test(material, edge=0.01, seed=0, max_time=8.0, still=5e-4, air_dampin
         ``pos`` (n + 1, 3) m and ``tris`` (m, 3): the draped specimen and the support's centre, triangles
         covering both.
     """
-    from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
-    from vfit_engine.textile.settle import fall_still
-
     t0 = time.perf_counter()
     model, tris, flat, sd = specimen_model(material, edge, seed)
     solver = SolverVerlet(model, settings or VerletSettings(air_damping=air_damping))

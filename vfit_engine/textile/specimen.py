@@ -5,20 +5,19 @@ Shapes::
     annulus(inner, outer, edge)   -> pos (n, 3) m, face_verts (k,), face_offsets (m+1,), ring (n,)   quads
     disc(radius, edge, seed)      -> pos (n, 3) m, face_verts (k,), face_offsets (m+1,)             triangles
 
-The cantilever's strip is a grid of quads (:func:`vfit_engine.garment.springs.grid_polygons`); the disc of
+The cantilever's strip is a grid of quads (:func:`vfit_engine.sim.springs.grid_polygons`); the disc of
 near-equilateral triangles measures the bending model without a quad grid's directions.
 """
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import Delaunay
 
 
 def disc(radius, edge, seed=0):
     """A disc of near-equilateral triangles of side ``edge``: a hexagonal lattice, each point moved by up to
     a tenth of the spacing (seeded: no direction of the lattice stands out), and a ring of points on the
     rim; Delaunay-triangulated. Vertex 0 is the centre."""
-    from scipy.spatial import Delaunay
-
     rng = np.random.default_rng(seed)
     rows = int(np.ceil(radius / (edge * np.sqrt(0.75)))) + 1
     j, i = np.meshgrid(np.arange(-rows, rows + 1), np.arange(-rows - 1, rows + 2), indexing="ij")

@@ -36,13 +36,26 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import multiprocessing
 import os
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
 from vfit_engine import process_cache
+from vfit_engine.body.measure import Measurer, stature
+from vfit_engine.body.model import BodyModel
+from vfit_engine.body.resolve import Body, default_body, resolve_body
+from vfit_engine.drape import DrapeDiverged, DrapeSettings, prepare_drape, run_drape
+from vfit_engine.drape.setup import garment_gender
 from vfit_engine.errors import InputError, VfitError
+from vfit_engine.fit.table import summary_line
+from vfit_engine.garment.garment import load_garment
+from vfit_engine.garment.placement import place_garment
+from vfit_engine.garment.transfer import transfer_garment
+from vfit_engine.sim.materials import resolve_material
 
 #: EN 13402-3 letter sizes: (size, bust/chest, waist, hips) in cm, the middle of each size's interval
 #: (women's bust XS 74-82 ... XL 107-119, men's chest XS 78-86 ... XL 110-118; waist and hips stepped
@@ -119,8 +132,6 @@ def garment_size(reference, gender, measurer=None):
         ``size``, ``measure`` ("bust" or "chest"), ``body_cm`` (the body's iso bust/chest girth),
         ``centre_cm`` (that size's centre).
     """
-    from vfit_engine.body.measure import Measurer
-
     measurer = measurer or Measurer()
     key = size_gender(gender)
     bust = 100.0 * measurer.measure(reference.verts, names=("bust",), mass=False).values["bust"]
@@ -130,8 +141,6 @@ def garment_size(reference, gender, measurer=None):
 
 def size_body(model, gender, size, height_m=None):
     """The body at the centre of ``size`` (:data:`SIZES`), ``height_m`` tall (None: the average body's)."""
-    from vfit_engine.body.resolve import resolve_body
-
     targets = dict(size_centres(gender)[size])
     if height_m is not None:
         targets["height"] = float(height_m)
@@ -163,11 +172,6 @@ def grade(garment, size_body, model, reference=None):
         garment as given lies on its own body, so ``prepare_drape(graded, body, model,
         reference=size_body)`` places it as the file gives it and moves it by the binding's change.
     """
-    from vfit_engine.body.resolve import default_body
-    from vfit_engine.drape.setup import garment_gender
-    from vfit_engine.garment.placement import place_garment
-    from vfit_engine.garment.transfer import transfer_garment
-
     binding = garment.binding()
     if reference is None:
         gender = garment_gender(garment) or (size_body.gender if isinstance(size_body.gender, str) else None)
@@ -179,8 +183,6 @@ def grade(garment, size_body, model, reference=None):
 
 def _customer_body(model, customer):
     """The customer's Body from a spec (:func:`try_sizes`)."""
-    from vfit_engine.body.resolve import Body, resolve_body
-
     if customer.get("verts") is not None:
         return Body(np.ascontiguousarray(customer["verts"], dtype=np.float64), dict(customer.get("description") or {}),
                     customer.get("gender"))
@@ -208,10 +210,6 @@ def try_size(job):
         ``start`` -- loading the body model and the kernels, the first job of a process --, ``size_body``,
         ``grade``, ``setup``, ``drape``, ``fit``).
     """
-    from vfit_engine.drape import DrapeDiverged, DrapeSettings, prepare_drape, run_drape
-    from vfit_engine.fit.table import summary_line
-    from vfit_engine.garment.garment import load_garment
-
     t0 = time.perf_counter()
     out = _blank(job)
     times = out["times_s"]
@@ -268,9 +266,6 @@ def _blank(job, message=None):
 def _pool_results(futures):
     """The results of submitted :func:`try_size` jobs (``futures``: future -> job), as they finish; a job
     whose process died fails."""
-    from concurrent.futures import as_completed
-    from concurrent.futures.process import BrokenProcessPool
-
     for f in as_completed(futures):
         try:
             yield f.result()
@@ -339,13 +334,6 @@ def try_sizes(garment_path, customer, sizes=None, workers=None, progress=None, u
         A bad garment or body file, unknown sizes, unreachable customer measurements (before any
         drape starts).
     """
-    from vfit_engine.body.measure import Measurer, stature
-    from vfit_engine.body.model import BodyModel
-    from vfit_engine.body.resolve import default_body
-    from vfit_engine.drape.setup import garment_gender
-    from vfit_engine.garment.garment import load_garment
-    from vfit_engine.sim.materials import resolve_material
-
     t0 = time.perf_counter()
     say = progress or (lambda text: None)
     names = parse_sizes(",".join(sizes)) if sizes else list(SIZE_NAMES)
@@ -401,8 +389,6 @@ def _worker_pool(n_workers):
     if n_workers <= 1:
         yield None
         return
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
 
     # a spawned child inherits the environment as it is when it starts (Numba reads the setting when
     # it is imported there); the processes start at the submits, so it covers them all and is put
