@@ -29,7 +29,8 @@ Definitions (``definition=``), after ``shared/reference/MEASUREMENTS.md``:
     * underbust (ISO 8559-1 "underbust girth", just below the breasts): the
       smallest torso tape girth within +-2 cm of the mean height of the
       underbust ruler's vertices, the band kept at least 1 cm below the bust
-      plane (and 4 cm long), so a low bust can never put it above the bust.
+      band's bottom (and 4 cm long), so a low bust can never put it above the
+      bust; a man's chest, higher, leaves it where a woman's bust would.
     * waist: the smallest torso tape girth between the mean heights of the hips
       ruler and of the underbust ruler (the natural, narrowest waist).
     * hips: the largest torso tape girth within +-4 cm of the mean height of the
