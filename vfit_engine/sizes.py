@@ -371,7 +371,8 @@ def try_sizes(garment_path, customer, sizes=None, workers=None, progress=None, u
         for r in results:
             done[r["size"]] = r
             what = r["status"] if r["status"] in JUDGED else f"{r['status']}: {r['message']}"
-            say(f"size {r['size']}: {what} in {r['wall_s']:.1f} s ({len(done)}/{len(jobs)})")
+            took = "" if r["wall_s"] is None else f" in {r['wall_s']:.1f} s"  # None: its process died
+            say(f"size {r['size']}: {what}{took} ({len(done)}/{len(jobs)})")
     out = dict(recommended=None, reason=None, rule=RULE, garment=str(garment_path), gender=gender, garment_size=own,
                size_height_cm=round(100 * height, 2),
                customer={k: round(100 * v, 2) for k, v in meas.values.items()},
