@@ -18,7 +18,6 @@ Each gradient is sparse: (vertex indices (k,), d/dv (k, 3)).
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from vfit_engine.kernels.girth_grad import girth_gradient as kernel
 from vfit_engine.kernels.section import select_band_edges
@@ -80,6 +79,8 @@ def girth_gradient_reference(sections, verts, h, x0=0.0):
         pts = loops[int(np.argmin([abs(p[:, 0].mean() - x0) for p in loops]))]
     if pts.shape[0] < 3:
         return np.zeros(0, np.int64), np.zeros((0, 3))
+    from scipy.spatial import ConvexHull  # local: ~0.2 s at every vfit morph's start, for this rare fallback
+
     q_idx = ConvexHull(pts).vertices  # counter-clockwise
     q = pts[q_idx]
     d_out = _unit(np.roll(q, -1, axis=0) - q)
