@@ -479,3 +479,24 @@ def test_gif_unwritable_path_raises_input_error(tmp_path):
 
     with pytest.raises(InputError, match="cannot write"):
         write_gif(tmp_path / "missing" / "d.gif", **_gif_args())
+
+
+def test_bar_marks_replace_the_nearby_tick_and_draw_a_line():
+    """A mark (the wearable stretch) is listed with its text, the tick it would overlap gives way, and the
+    picture draws a dark line across the bar at its value (where the bar without it is coloured)."""
+    bar = preview_text.bar_texts("yarn strain", "%", 0.0, 0.2, np.array([0.0, 0.2]), marks=((0.1, "10 % wearable"),))
+    assert bar["marks"] == [(0.1, "10 % wearable")]
+    assert [t for _, t in bar["ticks"]] == ["0 %", "5 %", "15 %", "20 %"]
+    assert preview_text.bar_texts("s", "%", 0.0, 0.2, np.array([0.1]), marks=((0.5, "off"),))["marks"] == []
+    verts = np.array([[0, 0, 0], [0.3, 0, 0], [0, 0.5, 0]], dtype=float)
+    kw = dict(cmap="stretch", vmin=0.0, vmax=0.2, label="yarn strain", unit="%", views=("front",), size=(600, 400))
+    plain = render_image(None, None, verts, [[0, 1, 2]], np.array([0.0, 0.1, 0.2]), **kw)
+    marked = render_image(None, None, verts, [[0, 1, 2]], np.array([0.0, 0.1, 0.2]), marks=((0.1, "10 % wearable"),),
+                          **kw)
+    bar = preview_text.bar_texts("yarn strain", "%", 0.0, 0.2, np.array([0.0, 0.2]), marks=((0.1, "10 % wearable"),))
+    x0, y0, x1, y1 = preview_text.layout(600, 400, 1, None, bar)["bar_box"]
+    y = round(y0 + 0.5 * (y1 - y0))
+    assert np.all(marked[y, x0:x1].max(axis=1) < 80)  # ink across the bar
+    plain_box = preview_text.layout(600, 400, 1, None, preview_text.bar_texts(
+        "yarn strain", "%", 0.0, 0.2, np.array([0.0, 0.2])))["bar_box"]
+    assert np.all(np.ptp(plain[y, plain_box[0]:plain_box[2]].astype(int), axis=1) > 100)  # colour there without

@@ -45,6 +45,11 @@ BACKGROUND_RGB = (1.0, 1.0, 1.0)
 #: * ``strain``: yarn strain as a fraction, the same colours as the developers' render.py: dark
 #:   blue at -15 %, the cloth blue at 0, yellow at +7.5 %, red at +15 % and beyond. Given vmin and
 #:   vmax, the stops keep their relative places (0 at the middle only when vmin = -vmax).
+#: * ``stretch``: yarn strain as a fraction on a sequential scale from 0 (the fit preview's): the cloth
+#:   blue at 0 and below (cloth shorter than given is gathered or buckled, free of tension: the solver
+#:   leaves compression free, so it is not drawn as a load), green, yellow at the middle, orange, red
+#:   at the end. The fit preview puts the middle at the fabric's wearable stretch (range 0 .. twice it,
+#:   marked on the bar): yellow is "as far as the fabric gives", red "twice that". Default range 0 .. 20 %.
 #: * ``viridis``: perceptually uniform and sequential (dark purple, blue, green, yellow), for
 #:   quantities that only grow such as ease (mm) or pressure (kPa). Nine stops sampled from
 #:   matplotlib's viridis (CC0, van der Walt and Smith 2015), interpolated linearly in sRGB.
@@ -54,6 +59,11 @@ COLOUR_MAPS = {
         (0.0, 0.5, 0.75, 1.0),
         ((0.08, 0.12, 0.45), (0.25, 0.45, 0.85), (0.95, 0.85, 0.2), (0.85, 0.1, 0.1)),
         (-0.15, 0.15),
+    ),
+    "stretch": (
+        (0.0, 0.25, 0.5, 0.75, 1.0),
+        ((0.25, 0.45, 0.85), (0.30, 0.68, 0.62), (0.95, 0.85, 0.2), (0.95, 0.52, 0.12), (0.85, 0.1, 0.1)),
+        (0.0, 0.20),
     ),
     "viridis": (
         tuple(np.linspace(0.0, 1.0, 9)),
@@ -91,7 +101,7 @@ _MAX_COORD = 100.0
 def render_views(path, body_verts, body_tris, garment_verts, garment_tris, values=None, *,
                  label="strain", unit="%", vmin=None, vmax=None, cmap="strain",
                  views=("front", "side", "back"), size=(1500, 750), title=None, zoom=None,
-                 shading="gouraud"):
+                 shading="gouraud", marks=()):
     """Write a PNG of the body and the garment seen from several sides.
 
     Parameters
@@ -114,7 +124,7 @@ def render_views(path, body_verts, body_tris, garment_verts, garment_tris, value
     vmin, vmax : float or None
         Values mapped to the colour map's ends (same units as ``values``); beyond them the end
         colours hold. Default: the map's own range (strain: -0.15 .. 0.15), else the values'.
-    cmap : {"strain", "viridis", "sequential"}
+    cmap : {"strain", "stretch", "viridis", "sequential"}
         See :data:`COLOUR_MAPS`.
     views : sequence of {"front", "side", "left", "back", "right"}
         Left to right. ``side`` is the body's left side (the body faces the picture's left).
@@ -129,6 +139,9 @@ def render_views(path, body_verts, body_tris, garment_verts, garment_tris, value
     shading : {"gouraud", "flat"}
         Per-vertex lighting interpolated across triangles, or one light level per triangle
         (shows the facets, i.e. crumpled or collapsed faces, more plainly).
+    marks : sequence of (value, text)
+        Lines across the colour bar at these values (in the values' units), labelled, e.g. the
+        fabric's wearable stretch.
 
     Returns
     -------
@@ -143,7 +156,7 @@ def render_views(path, body_verts, body_tris, garment_verts, garment_tris, value
     """
     image = render_image(body_verts, body_tris, garment_verts, garment_tris, values, label=label,
                          unit=unit, vmin=vmin, vmax=vmax, cmap=cmap, views=views, size=size,
-                         title=title, zoom=zoom, shading=shading)
+                         title=title, zoom=zoom, shading=shading, marks=marks)
     path = Path(path)
     with atomic_write(path, "wb") as fh:
         # level 3: half the time of the default level 6 for 12 % more bytes
@@ -154,7 +167,7 @@ def render_views(path, body_verts, body_tris, garment_verts, garment_tris, value
 def render_image(body_verts, body_tris, garment_verts, garment_tris, values=None, *,
                  label="strain", unit="%", vmin=None, vmax=None, cmap="strain",
                  views=("front", "side", "back"), size=(1500, 750), title=None, zoom=None,
-                 shading="gouraud"):
+                 shading="gouraud", marks=()):
     """The picture of :func:`render_views` as an (height, width, 3) uint8 sRGB array.
 
     Arguments as in :func:`render_views`.
@@ -162,7 +175,7 @@ def render_image(body_verts, body_tris, garment_verts, garment_tris, values=None
     scene = check_scene(body_verts, body_tris, garment_verts, garment_tris, cmap=cmap, size=size,
                         views=views, shading=shading, label=label, unit=unit)
     gv = scene.meshes[-1][0]
-    rgb, bar, lo, hi = garment_colours(values, gv.shape[0], cmap, vmin, vmax, label, unit)
+    rgb, bar, lo, hi = garment_colours(values, gv.shape[0], cmap, vmin, vmax, label, unit, marks=marks)
     lay = text.layout(scene.width, scene.height, len(scene.rotations), title, bar)
     meshes = [(v, t, c, shading_normals(v, t, shading))
               for (v, t), c in zip(scene.meshes, [*scene.colours, rgb])]
@@ -299,18 +312,19 @@ def check_scene(body_verts, body_tris, garment_verts, garment_tris, *, cmap, siz
     return Scene(width, height, meshes, skin, rotations, captions)
 
 
-def garment_colours(values, n_verts, cmap, vmin, vmax, label, unit, n_frames=None):
+def garment_colours(values, n_verts, cmap, vmin, vmax, label, unit, n_frames=None, marks=()):
     """(rgb (n_verts, 3) or (n_frames, n_verts, 3), bar texts or None, lo, hi) of the garment.
 
     ``values``: None (plain cloth colour, no bar), (n_verts,) or, for an animation of
     ``n_frames``, (n_frames, n_verts) values whose common range sets the colours of every frame.
+    ``marks``: (value, text) lines across the bar (:func:`render_views`).
     """
     if values is None:
         return np.tile(np.asarray(CLOTH_RGB), (n_verts, 1)), None, 0.0, 1.0
     vals = _check_values(values, n_verts, n_frames)
     lo, hi = value_range(vals.ravel(), cmap, vmin, vmax)
     rgb = colour_map(vals.ravel(), cmap, lo, hi).reshape(*vals.shape, 3)
-    return rgb, text.bar_texts(label, unit, lo, hi, vals), lo, hi
+    return rgb, text.bar_texts(label, unit, lo, hi, vals, marks), lo, hi
 
 
 def _check_meshes(body_verts, body_tris, garment_verts, garment_tris):

@@ -107,25 +107,31 @@ def format_value(x, decimals, unit):
     return f"{s} {unit}" if unit else s
 
 
-def bar_texts(label, unit, lo, hi, vals):
-    """Heading, ticks (value, text), notes (data min/max) and end markers of the colour bar.
+def bar_texts(label, unit, lo, hi, vals, marks=()):
+    """Heading, ticks (value, text), marks (value, text), notes (data min/max) and end markers of the
+    colour bar.
 
     ``vals`` are the values shown (any shape); with ``unit == "%"`` they, ``lo`` and ``hi`` are
-    fractions and the texts are percentages.
+    fractions and the texts are percentages. ``marks``: (value, text) lines drawn across the bar (the
+    fabric's wearable stretch); a tick closer to a mark than a third of the bar's tick step gives way.
     """
     f = 100.0 if unit == "%" else 1.0
     step, dec = nice_step((hi - lo) * f)
     k0, k1 = math.ceil(lo * f / step - 1e-9), math.floor(hi * f / step + 1e-9)
+    marks = [(float(v), str(t)) for v, t in marks if lo <= v <= hi]
+    ticks = [(k * step / f, format_value(k * step, dec, unit)) for k in range(k0, k1 + 1)]
     return dict(
         heading=f"{label} ({unit})" if unit else label,
-        ticks=[(k * step / f, format_value(k * step, dec, unit)) for k in range(k0, k1 + 1)],
+        ticks=[(v, t) for v, t in ticks if all(abs(v - m) * f > step / 3 for m, _ in marks)],
+        marks=marks,
         notes=[f"max {format_value(vals.max() * f, dec + 1, unit)}",
                f"min {format_value(vals.min() * f, dec + 1, unit)}"],
         beyond_high=bool(vals.max() > hi), beyond_low=bool(vals.min() < lo))
 
 
 def bar_column_width(bar, fs):
-    ticks = max(text_mask(t, fs).size[0] for _, t in bar["ticks"]) if bar["ticks"] else 0
+    labels = [*bar["ticks"], *bar.get("marks", ())]
+    ticks = max(text_mask(t, fs).size[0] for _, t in labels) if labels else 0
     texts = [text_mask(t, fs).size[0] for t in [bar["heading"], *bar["notes"]]]
     return max(fs + fs // 3 + fs // 4 + ticks, *texts)
 
@@ -148,6 +154,10 @@ def draw_bar_frame(img, box, bar, fs, lo, hi, end_rgb):
     for value, text in bar["ticks"]:
         y = round(y0 + (hi - value) / (hi - lo) * (y1 - y0))
         draw.line((x1, y, x1 + fs // 3, y), fill=colour)
+        put_text(img, text, fs, x1 + fs // 3 + fs // 4, y, valign="middle")
+    for value, text in bar.get("marks", ()):  # a line across the bar, out to its label
+        y = round(y0 + (hi - value) / (hi - lo) * (y1 - y0))
+        draw.rectangle((x0 - fs // 4, y - 1, x1 + fs // 3, y + 1), fill=colour)
         put_text(img, text, fs, x1 + fs // 3 + fs // 4, y, valign="middle")
     line = line_height(fs)
     put_text(img, bar["heading"], fs, x0, y0 - tri - fs // 2 - line)

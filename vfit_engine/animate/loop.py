@@ -35,7 +35,8 @@ from vfit_engine.drape.loop import DrapeDiverged, build_solver, run_drape
 from vfit_engine.drape.metrics import surface_penetration, yarn_strain
 from vfit_engine.drape.settings import DrapeSettings
 from vfit_engine.errors import InputError
-from vfit_engine.fit.maps import CONTACT_MM, contact_pressure
+from vfit_engine.fit.maps import CONTACT_MM
+from vfit_engine.fit.pressure import collider_pressure
 
 #: Colliders of an animation: the exact body near the garment, or spheres fitted to the body that follow its
 #: bones (along the bones, or the medial cover).
@@ -234,7 +235,7 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     state = solver.init_state(sub_dt, pos=rest_pos)
     solver.max_push = st.max_push
     timings["setup"] = time.perf_counter() - t0 - timings["posing"]
-    figures = [frame_figures(setup, body, rest_pos)]
+    figures = [frame_figures(setup, body, rest_pos, dst.solver.slack)]
     figures[0]["slowed_vertices"] = 0
     if on_frame is not None:
         on_frame(0, bodies[0], rest_pos, figures[0], travel[0])
@@ -253,7 +254,7 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
         np.copyto(last_good, state.pos)
         t0 = time.perf_counter()
         body.judge(k)  # the whole exact body at the frame's end, whatever the cloth met
-        figures.append(frame_figures(setup, body, state.pos))
+        figures.append(frame_figures(setup, body, state.pos, dst.solver.slack))
         figures[-1]["slowed_vertices"] = slowed
         timings["figures"] += time.perf_counter() - t0
         if on_frame is not None:
@@ -320,21 +321,21 @@ def _settled(clip, figures, st, dst):
     return all(f["share_moving"] <= dst.settle_share and f["max_step_mm"] <= 1000 * dst.settle_max_step for f in tail)
 
 
-def frame_figures(setup, body, pos):
+def frame_figures(setup, body, pos, slack):
     """The figures of one frame: the cloth surface against the body (``surface_inside_percent``,
     ``surface_max_depth_mm``, ``surface_deeper_than_2mm``: :func:`vfit_engine.drape.metrics.surface_penetration`),
     the yarn strain against the garment as given (``p99_strain``, ``max_strain``), the largest contact pressure
-    (``pressure_max_kpa``, :func:`vfit_engine.fit.maps.contact_pressure`) and how far the cloth moved since
-    the last frame (``max_step_mm``, ``share_moving``)."""
+    (``pressure_max_kpa``, :func:`vfit_engine.fit.pressure.collider_pressure`) and how far the cloth moved since
+    the last frame (``max_step_mm``, ``share_moving``). ``slack``: the strain the solver leaves free (the
+    pressure's tension starts beyond it)."""
     mesh = setup.garment.mesh
     judge = body.whole
     judge.settle_bounds()  # exact centre distances now: points clear of the body are dismissed
     out = surface_penetration(judge, pos, mesh.triangles())
     strain = yarn_strain(mesh, pos)
-    d, _, normal, tri = judge.query(pos, max_out=CONTACT_MM / 1000.0, max_in=np.inf)
-    contact = (d <= CONTACT_MM / 1000.0) & (tri >= 0)
-    mat = setup.material
-    pressure = contact_pressure(mesh, pos, mat.stretch_stiffness, mat.areal_density, normal, contact)
+    query = judge.query(pos, max_out=CONTACT_MM / 1000.0, max_in=np.inf)
+    contact = (query[0] <= CONTACT_MM / 1000.0) & (query[3] >= 0)
+    pressure = collider_pressure(mesh, pos, setup.material, judge, query, contact, slack)
     step = np.linalg.norm(pos - body.last_pos, axis=1) if body.last_pos is not None else np.zeros(len(pos))
     body.last_pos = pos.copy()
     out.update(p99_strain=strain["p99_strain"], max_strain=strain["max_strain"],
