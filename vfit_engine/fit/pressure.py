@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vfit_engine.geometry import closest_point_barycentric
+from vfit_engine.geometry import closest_point_barycentric, vertex_normals
 from vfit_engine.sim.springs import polygon_areas
 
 #: Smoothing rounds of the body's shape operator (each averages a vertex with its one ring: ~1.5 cm on
@@ -95,10 +95,10 @@ def membrane_tension(mesh, pos, stiffness, slack):
     tension = stiffness * np.maximum(length / l0s - 1.0 - slack, 0.0)  # N/m
     # 1/2 t w l u u^T = 1/2 t (A / l0) d d^T / l
     coef = np.where(ok, 0.5 * tension * edge_area_shares(mesh) / (l0s * ls), 0.0)
-    outer = coef[:, None, None] * d[:, :, None] * d[:, None, :]
-    sigma = np.zeros((mesh.n_verts, 3, 3))
-    np.add.at(sigma, edges[:, 0], outer)
-    np.add.at(sigma, edges[:, 1], outer)
+    outer = (coef[:, None, None] * d[:, :, None] * d[:, None, :]).reshape(-1, 9)
+    both = np.concatenate([edges[:, 0], edges[:, 1]])
+    sigma = np.stack([np.bincount(both, weights=np.tile(outer[:, j], 2), minlength=mesh.n_verts)
+                      for j in range(9)], axis=1).reshape(-1, 3, 3)
     # never less than the rest area: a crumpled or collapsed vertex (a fold, a sliver) does not concentrate
     # the tension of its edges (cloth buckles rather than narrows)
     area = np.maximum(vertex_areas(mesh, pos), vertex_areas(mesh, rest))
@@ -131,36 +131,39 @@ def body_shape_operator(verts, tris, normals, rounds=CURVATURE_ROUNDS):
     tangent = np.eye(3) - nf[:, :, None] * nf[:, None, :]
     s = np.where(good[:, None, None], tangent @ s @ tangent, 0.0)
     weight = np.where(good, double_area, 0.0)
-    corner_w = np.bincount(tris.ravel(), weights=np.repeat(weight, 3), minlength=len(verts))
+    n = len(verts)
+    corner_w = np.bincount(tris.ravel(), weights=np.repeat(weight, 3), minlength=n)
     corner_w = np.where(corner_w > 0, corner_w, 1.0)
-    out = _to_vertices(tris, s, nf, normals, weight, corner_w)
+    # the least rotations from each triangle's plane to its corners' (fixed over the rounds)
+    turn = [_rotation(nf, normals[tris[:, k]]) for k in range(3)]
+    out = _to_vertices(tris, s, turn, weight, corner_w)
     for _ in range(int(rounds)):
-        per_tri = sum(_transport(out[tris[:, k]], normals[tris[:, k]], nf) for k in range(3)) / 3.0
-        out = _to_vertices(tris, per_tri, nf, normals, weight, corner_w)
+        per_tri = sum(r.transpose(0, 2, 1) @ out[tris[:, k]] @ r for k, r in enumerate(turn)) / 3.0
+        out = _to_vertices(tris, per_tri, turn, weight, corner_w)
     return out
 
 
-def _transport(s, n_from, n_to):
-    """(m, 3, 3) tensors ``s`` tangent to the planes of normals ``n_from`` turned by the least rotation that
-    takes ``n_from`` to ``n_to`` (Rodrigues): averaging tensors of differently tilted planes without it
-    would shed their curvature into the normal direction (3 % on a cylinder of 48 sides after 3 rounds)."""
+def _rotation(n_from, n_to):
+    """(m, 3, 3) least rotations taking unit ``n_from`` to ``n_to`` (Rodrigues). Tensors of differently tilted
+    planes are turned into one plane before they are averaged: without it, they would shed their curvature
+    into the normal direction (3 % on a cylinder of 48 sides after 3 rounds)."""
     v = np.cross(n_from, n_to)
     c = np.einsum("ij,ij->i", n_from, n_to)
     vx = np.zeros((len(v), 3, 3))
     vx[:, 0, 1], vx[:, 0, 2], vx[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
     vx -= vx.transpose(0, 2, 1)
-    rot = np.eye(3) + vx + (vx @ vx) / np.maximum(1.0 + c, 1e-6)[:, None, None]
-    return rot @ s @ rot.transpose(0, 2, 1)
+    return np.eye(3) + vx + (vx @ vx) / np.maximum(1.0 + c, 1e-6)[:, None, None]
 
 
-def _to_vertices(tris, per_tri, nf, normals, weight, corner_w):
-    """Area-weighted average at each vertex of per-triangle (T, 3, 3) tensors (tangent to the triangles'
-    planes, normals ``nf``), each turned into the vertex's tangent plane (``normals``)."""
-    n = len(normals)
+def _to_vertices(tris, per_tri, turn, weight, corner_w):
+    """Area-weighted average at each vertex of per-triangle (T, 3, 3) tensors, each turned by ``turn[k]`` into
+    the plane of its corner k."""
+    n = len(corner_w)
     out = np.zeros((n, 9))
-    for k in range(3):
-        moved = _transport(per_tri, nf, normals[tris[:, k]]) * weight[:, None, None]
-        np.add.at(out, tris[:, k], moved.reshape(-1, 9))
+    for k, r in enumerate(turn):
+        moved = (r @ per_tri @ r.transpose(0, 2, 1) * weight[:, None, None]).reshape(-1, 9)
+        for j in range(9):
+            out[:, j] += np.bincount(tris[:, k], weights=moved[:, j], minlength=n)
     return (out / corner_w[:, None]).reshape(n, 3, 3)
 
 
@@ -197,12 +200,27 @@ def contact_pressure(mesh, pos, stiffness, slack, curvature, contact):
     return np.where(contact, np.maximum(p, 0.0), 0.0) / 1000.0
 
 
+def _near(tris, seed, rings):
+    """(T,) bool: the triangles within ``rings`` rings of the triangles ``seed`` (the shape operator at the
+    contacts depends on no others: each smoothing round reaches one ring farther)."""
+    near = np.zeros(len(tris), dtype=bool)
+    near[seed] = True
+    marked = np.zeros(int(tris.max()) + 1 if tris.size else 0, dtype=bool)
+    for _ in range(int(rings)):
+        marked[tris[near].ravel()] = True
+        near = marked[tris].any(axis=1)
+    return near
+
+
 def collider_pressure(mesh, pos, material, collider, query, contact, slack):
-    """Contact pressure, kPa, of ``mesh`` at ``pos`` on the body of ``collider`` (a
-    :class:`vfit_engine.collide.body_mesh.MeshCollider`: its ``verts``, ``tris`` and ``vert_normals``);
-    ``query`` its ``(d, closest, normal, tri)`` at ``pos``; ``contact`` (n,) bool; ``material`` the fabric."""
+    """Contact pressure, kPa, of ``mesh`` at ``pos`` on the body of ``collider`` (a still or moving body
+    collider: its ``verts`` and ``tris``); ``query`` its ``(d, closest, normal, tri)`` at ``pos``; ``contact``
+    (n,) bool; ``material`` the fabric; ``slack`` the strain the solver leaves free."""
     d, closest, _, tri = query
-    shape = body_shape_operator(collider.verts, collider.tris, collider.vert_normals)
-    curvature = contact_curvature(shape, collider.tris, collider.verts, collider.vert_normals,
-                                  np.where(contact, tri, -1), closest, np.where(np.isfinite(d), d, 0.0))
+    tris = collider.tris
+    normals = vertex_normals(collider.verts, tris, outward=True)
+    shape = body_shape_operator(collider.verts, tris[_near(tris, tri[contact & (tri >= 0)], CURVATURE_ROUNDS + 2)],
+                                normals)
+    curvature = contact_curvature(shape, collider.tris, collider.verts, normals, np.where(contact, tri, -1), closest,
+                                  np.where(np.isfinite(d), d, 0.0))
     return contact_pressure(mesh, pos, material.stretch_stiffness, slack, curvature, contact)
