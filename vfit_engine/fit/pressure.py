@@ -40,8 +40,8 @@ import numpy as np
 from vfit_engine.geometry import closest_point_barycentric, vertex_normals
 from vfit_engine.sim.springs import polygon_areas
 
-#: Smoothing rounds of the body's shape operator (each averages a vertex with its one ring: ~1.5 cm on
-#: hm08's torso per round); see the module docstring.
+#: Smoothing rounds of the body's shape operator (each averages a vertex with its one ring: hm08's edges are
+#: ~1 cm on the torso); see the module docstring.
 CURVATURE_ROUNDS = 3
 
 
