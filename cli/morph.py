@@ -14,9 +14,13 @@ FAILURE_SECONDS = 2.6
 GIRTH_OPTIONS = ("bust", "underbust", "waist", "hips", "neck", "upper_arm", "thigh", "calf")
 
 
+#: other names of an option: a man's chest is the girth a woman's bust is (one measurement, one target)
+ALIASES = {"bust": ("--chest",)}
+
+
 def girth_option(name, help_text):
-    return click.option(f"--{name.replace('_', '-')}", name, type=Quantity("cm", 1, 400), default=None,
-                        help=help_text)
+    return click.option(f"--{name.replace('_', '-')}", *ALIASES.get(name, ()), name, type=Quantity("cm", 1, 400),
+                        default=None, help=help_text)
 
 
 @click.command()
@@ -25,7 +29,7 @@ def girth_option(name, help_text):
 @click.option("--height", type=Quantity("cm", 50, 300), default=None, help="Stature (top of head to sole), cm.")
 @click.option("--weight", type=Quantity("kg", 10, 500), default=None,
               help="Body mass, kg (met through body volume x 985 kg/m^3).")
-@girth_option("bust", "Bust girth, cm.")
+@girth_option("bust", "Bust girth (men: chest; --chest is the same option), cm.")
 @girth_option("underbust", "Underbust girth, cm.")
 @girth_option("waist", "Waist girth, cm.")
 @girth_option("hips", "Hip girth, cm.")
