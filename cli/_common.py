@@ -204,8 +204,8 @@ def fit_table_lines(rows):
     garment does not go round has not."""
     from vfit_engine.fit.verdict import stretch
 
-    def num(x, fmt):
-        return "-" if x is None else format(x, fmt)
+    def num(x, fmt):  # + 0.0: no "-0.0" for a figure that rounds to nothing
+        return "-" if x is None else format(round(x, 1) + 0.0, fmt)
 
     table = [[r["region"] + ("*" if r.get("key") else ""),
               f"{r['body_girth_cm']:.1f}" + (" (estimated)" if r.get("estimated") else ""),

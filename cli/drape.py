@@ -387,7 +387,7 @@ def _finish(setup, result, model, o, written, context, elapsed):
     write_scene(paths["scene.glb"], setup, result.pos, model, maps, o.map_name)
     written.append(paths["scene.glb"])
     if o.preview:
-        write_preview(paths["preview.png"], setup, result.pos, model, maps, o.map_name)
+        write_preview(paths["preview.png"], setup, result.pos, model, maps, o.map_name, rows=rows)
         written.append(paths["preview.png"])
     if o.gif:
         _write_gif(paths["drape.gif"], setup, model, o.gif_frames + [result.pos])

@@ -47,10 +47,10 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
     cloth round it, verdict; * marks the key regions, "estimated" a girth the
     customer did not give) and the recommended size.
 
-    The rule: the smallest size with no tight (or too tight to wear) verdict
-    at a key region (chest/bust, waist, hips where the garment covers them); a
-    tight cuff or hem elsewhere does not change the size. If every size is tight there, the
-    largest, saying where it is tight. Exit 3 when no size could be judged
+    The rule: the smallest size with no tight verdict (tight or too tight to
+    wear) at a key region (chest/bust, waist, hips where the garment covers
+    them); a tight cuff or hem elsewhere does not change the size. If every
+    size is tight there, the largest, saying where it is tight. Exit 3 when no size could be judged
     (every drape diverged or failed).
 
     \b

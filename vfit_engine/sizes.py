@@ -69,8 +69,8 @@ SIZES = {
 #: The sizes, smallest first.
 SIZE_NAMES = tuple(s[0] for s in SIZES["female"])
 #: The rule of :func:`recommend`, in words (``vfit size --help`` and the JSON say it).
-RULE = ("the smallest size with no tight (or too tight to wear) verdict at a key region (chest/bust, waist, hips "
-        "where the garment covers them); if every size is tight there, the largest, saying where it is tight")
+RULE = ("the smallest size with no tight verdict (tight or too tight to wear) at a key region (chest/bust, waist, "
+        "hips where the garment covers them); if every size is tight there, the largest, saying where it is tight")
 #: Statuses of a tried size: judged on its settled drape, on its last frame, or not judged.
 STATUSES = ("settled", "not settled", "diverged", "failed")
 #: Statuses whose fit table counts.
@@ -439,8 +439,6 @@ def _where(rows):
         stretch = r.get("girth_strain", r.get("max_strain"))
         if stretch is not None:
             bits.append(f"stretched {100 * stretch:.1f} %")
-        if r.get("verdict"):
-            bits.insert(0, r["verdict"])
         parts.append(_region(r["region"]) + (f" ({', '.join(bits)})" if bits else ""))
     return "the " + _join(parts)
 

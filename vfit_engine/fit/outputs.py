@@ -11,6 +11,7 @@ import os
 
 from vfit_engine.body.bodyio import body_mesh
 from vfit_engine.fit.maps import MAP_UNITS
+from vfit_engine.fit.verdict import tight_line
 from vfit_engine.io.gltf import ScenePart, write_scene_glb
 from vfit_engine.io.ply import write_ply
 from vfit_engine.preview import colour_map, render_views
@@ -47,12 +48,14 @@ def write_scene(path, setup, pos, model, maps, name="strain"):
                            ScenePart("garment", setup.garment.mesh, pos, colors=map_colours(maps, name))])
 
 
-def write_preview(path, setup, pos, model, maps, name="strain", title=None):
+def write_preview(path, setup, pos, model, maps, name="strain", title=None, rows=None):
     """``preview.png``: body and garment from the front, the side and the back, the garment coloured by the
-    map ``name`` with a colour bar in its unit."""
+    map ``name`` with a colour bar in its unit; with the fit table's ``rows`` the title says where it is tight
+    (:func:`.verdict.tight_line`: the rows' verdicts)."""
     spec = PICTURE_MAPS[name]
     garment = os.path.basename(str(setup.garment.source))
     render_views(path, setup.body.surface, model.body_tris, pos, setup.garment.mesh.triangles(),
                  maps[spec["key"]], label=spec["label"], unit=spec["unit"], cmap=spec["cmap"], vmin=spec["vmin"],
-                 vmax=spec["vmax"], title=title or f"{garment}: {spec['label']}"
-                 + (" against the garment as given" if name == "strain" else ""))
+                 vmax=spec["vmax"], title=title or (f"{garment}: {tight_line(rows)}" if rows is not None else
+                                                    f"{garment}: {spec['label']}"
+                                                    + (" against the garment as given" if name == "strain" else "")))

@@ -1,9 +1,9 @@
 """The fit verdict: one rule that says how a garment fits each body region, and the words that say it.
 
 Every output that says how a garment fits -- the fit table's rows (:mod:`.table`), ``fit_summary``, the
-report's ``too_tight``, ``vfit drape``'s and ``vfit size``'s printed lines, the size ``vfit size``
-recommends (:mod:`vfit_engine.sizes`) and the batch columns -- reads the verdict this module gives a row;
-none judges on its own.
+report's ``too_tight``, ``vfit drape``'s and ``vfit size``'s printed lines, the preview's title, the size
+``vfit size`` recommends (:mod:`vfit_engine.sizes`) and the batch columns -- reads the verdict this module
+gives a row; none judges on its own.
 
 **The rule.** A region's verdict comes from two figures of its row and the fabric's wearable stretch
 ``L`` (``Material.wearable_stretch``: cotton 10 %, jersey 30 %, denim 5 %):
@@ -180,6 +180,17 @@ def summary_line(rows):
     notes = [f"not covered: the {join(uncovered)} (given; the garment does not go round it)"] if uncovered else []
     notes += [f"estimated (not given): {join(estimated)}"] if estimated else []
     return "; ".join([", ".join(parts) if parts else "no region the garment goes round"] + notes)
+
+
+def tight_line(rows):
+    """The regions a customer feels, for the preview's title: ``too tight to wear at the chest, tight at the
+    waistband``, or ``nothing tight`` (the verdicts of the rows, as :func:`summary_line` says them)."""
+    parts = []
+    for v in TIGHT:
+        names = list(dict.fromkeys(base_region(r["region"]) for r in rows if r["verdict"] == v))
+        if names:
+            parts.append(f"{v} at the {join(names)}")
+    return ", ".join(parts) if parts else "nothing tight"
 
 
 def join(words):
