@@ -97,7 +97,8 @@ def morph(gender, height, weight, definition, search_time, output, json_path, qu
 
     achieved = res.measurement.cm()
     start = res.start.cm()
-    rows = _table_rows(res, targets, weight, achieved, start, NAMES)
+    male = gender == "male" or (not isinstance(gender, str) and float(gender) >= 0.5)
+    rows = _table_rows(res, targets, weight, achieved, start, NAMES, male)
     for line in res.warnings:
         click.echo(f"warning: {line}", err=True)
     if not quiet:
@@ -157,12 +158,13 @@ def _source():
     return CITATION
 
 
-def _table_rows(res, targets, weight, achieved, start, names):
-    """The printed table: target (or the estimate), achieved, error and start of every measurement."""
+def _table_rows(res, targets, weight, achieved, start, names, male=False):
+    """The printed table: target (or the estimate), achieved, error and start of every measurement (a man's bust
+    named chest)."""
     rows = []
     for k in names:
         want = targets.get(k)
-        rows.append([f"{k} (cm)", f"{want * 100:.2f}" if want is not None else _estimate(res, k, 100.0),
+        rows.append([f"{'chest' if male and k == 'bust' else k} (cm)", f"{want * 100:.2f}" if want is not None else _estimate(res, k, 100.0),
                      f"{achieved[k]:.2f}", f"{(achieved[k] - want * 100) * 10:+.2f}" if want is not None else "",
                      f"{start[k]:.2f}"])
     rows.append(["mass (kg)", f"{weight:.2f}" if weight else _estimate(res, "mass", 1.0),

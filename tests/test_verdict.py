@@ -202,3 +202,44 @@ def test_size_choice_and_batch_columns_read_the_rows_verdicts(skirts):
             row = next((r for r in rep["fit"] if r["region"] == key), None)
             assert flat[f"{key}_verdict"] == (row["verdict"] if row else None)
         assert [f["verdict"] for f in flat["fit"]] == [r["verdict"] for r in rep["fit"]]
+
+
+# -- section 4's messages -------------------------------------------------------------------------------
+
+def _frame(depth=0.0, inside=0.0, p99=0.02):
+    return dict(surface_max_depth_mm=depth, surface_inside_percent=inside, p99_strain=p99)
+
+
+def test_animation_frames_over_the_bars_say_whose_fault():
+    """The skin through the cloth is the simulation's fault; cloth outside the skin stretched past the bar is the
+    garment too tight for the motion, beyond or within what the fabric gives."""
+    from vfit_engine.animate.outputs import MAX_DEPTH_MM, MAX_P99_STRAIN, quality
+
+    frames = [_frame(), _frame(), _frame(p99=MAX_P99_STRAIN + 0.04), _frame(depth=MAX_DEPTH_MM + 1.0, p99=0.2)]
+    q = quality(frames, limit=COTTON)
+    assert [(f["frame"], f["cause"]) for f in q["failed_frames"]] == [(2, "garment"), (3, "simulation")]
+    assert q["simulation_frames"] == 1 and q["garment_frames"] == 1
+    assert "simulation's fault" in q["verdict"] and "too tight for the motion" in q["verdict"]
+    assert "beyond the 10 %" in q["verdict"]
+    within = quality([_frame(), _frame(p99=MAX_P99_STRAIN + 0.01)], limit=0.30)
+    assert within["simulation_frames"] == 0 and "within the 30 %" in within["verdict"]
+    assert quality([_frame(), _frame()], limit=COTTON) == dict(quality([_frame()] * 2), verdict=None)
+
+
+def test_chest_is_the_bust_option_of_a_man(tmp_path):
+    """``--chest`` is ``--bust``'s other name in every command with the body options, and a batch's column."""
+    from vfit_engine.batch.job import body_spec
+    from vfit_engine.errors import InputError
+
+    for command in ("morph", "drape", "size", "animate", "pose", "transfer"):
+        r = CliRunner().invoke(cli, [command, "--help"])
+        assert r.exit_code == 0 and "--bust, --chest" in r.output, command
+    out = tmp_path / "body.obj"
+    r = CliRunner().invoke(cli, ["morph", "--gender", "male", "--chest", "104", "-o", str(out), "--json",
+                                 str(tmp_path / "b.json")])
+    assert r.exit_code == 0, r.output
+    assert json.loads((tmp_path / "b.json").read_text())["targets"]["bust"] == pytest.approx(104.0, abs=0.01)
+    assert re.search(r"^chest \(cm\) +104\.00", r.output, re.M) and not re.search(r"^bust", r.output, re.M)
+    assert body_spec({"chest": "104", "gender": "male"}, "row 2", tmp_path)["bust"] == 104.0
+    with pytest.raises(InputError, match="one measurement"):
+        body_spec({"chest": "104", "bust": "100"}, "row 2", tmp_path)

@@ -16,14 +16,16 @@ round the region), ``garment_girth_cm`` (a tape round the draped garment in the 
 outside: the hull of the outermost garment loop that goes round the region; for an opening, its
 draped length), ``ease_cm`` (their difference), ``girth_strain`` (how far the cloth round the region
 is stretched: sum l / sum l0 - 1 over the garment's yarn edges that run round it within ``BAND`` of
-the plane, and no higher than where the body's arms join its torso: a man's chest is taken just under the
-armpits, and above them a shirt's edges run round its armholes and sleeve caps; for an opening, its
-draped length over its length as given), ``max_strain`` (the largest yarn strain there, edges >= 3 mm),
+the plane (twice that where coarse cloth has no ring of edges so near: a suit's waist), and no higher
+than where the body's arms join its torso: a man's chest is taken just under the armpits, and above them
+a shirt's edges run round its armholes and sleeve caps; for an opening, its draped length over its length
+as given), ``max_strain`` (the largest yarn strain there, edges >= 3 mm),
 ``pressure_kpa_max`` (:mod:`.maps`), ``estimated`` (the customer did not give this girth: the body model
 estimated it from the others) and ``verdict``: too tight to wear, tight, fitted, loose or too loose, by the
 one rule of :mod:`.verdict` (which every other output reads).
 
-``key`` marks the regions that decide a size (bust/chest, waist and hips).
+``key`` marks the regions that decide a size (bust/chest, waist and hips). A girth the customer gave that
+the garment does not go round has its row all the same (verdict ``not covered``, no garment figures).
 """
 from __future__ import annotations
 
