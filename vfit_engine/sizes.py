@@ -439,6 +439,8 @@ def _where(rows):
         stretch = r.get("girth_strain", r.get("max_strain"))
         if stretch is not None:
             bits.append(f"stretched {100 * stretch:.1f} %")
+        if r.get("verdict") == "too tight to wear":  # the rule's word where "tight" says too little
+            bits.insert(0, r["verdict"])
         parts.append(_region(r["region"]) + (f" ({', '.join(bits)})" if bits else ""))
     return "the " + _join(parts)
 
