@@ -195,3 +195,20 @@ def fmt_table(rows: list, header: list) -> str:
     widths = [max(len(r[i]) for r in cols) for i in range(len(header))]
     line = lambda r: "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
     return "\n".join([line(header), line(["-" * w for w in widths])] + [line(r) for r in cols[1:]])
+
+
+def fit_table_lines(rows):
+    """The fit table (report.json's ``fit``) as people read it, one line per region: body and garment girth,
+    ease, the stretch of the cloth round it and the verdict (vfit_engine.fit.verdict's rule); * marks the
+    regions that decide a size, "(estimated)" a girth the customer did not give, "-" a figure a region the
+    garment does not go round has not."""
+    from vfit_engine.fit.verdict import stretch
+
+    def num(x, fmt):  # + 0.0: no "-0.0" for a figure that rounds to nothing
+        return "-" if x is None else format(round(x, 1) + 0.0, fmt)
+
+    table = [[r["region"] + ("*" if r.get("key") else ""),
+              f"{r['body_girth_cm']:.1f}" + (" (estimated)" if r.get("estimated") else ""),
+              num(r["garment_girth_cm"], ".1f"), num(r["ease_cm"], "+.1f"),
+              num(None if stretch(r) is None else 100 * stretch(r), ".1f"), r["verdict"]] for r in rows]
+    return fmt_table(table, ["region", "body cm", "garment cm", "ease cm", "stretch %", "verdict"]).splitlines()

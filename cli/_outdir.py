@@ -203,3 +203,26 @@ def _remove(path):
         os.remove(path)
     except OSError:
         pass
+
+
+#: The outputs a user opens, in the order the "wrote" line names them (the rest are counted, not listed).
+OPENED = ("report.json", "preview.png", "drape.gif", "preview.gif", "scene.glb", "animation.glb", "final.obj",
+          "final.ply", "final.glb")
+
+
+def wrote_line(outdir, paths):
+    """The line that says what a run wrote: its folder and the few files a user opens, the rest counted, e.g.
+    ``wrote out/: report.json, scene.glb and final.obj (and 42 more: body.obj, fit.ply, 40 frame files)``."""
+    names = [os.path.basename(p) for p in paths]
+    opened = [n for n in OPENED if n in names]
+    rest = [n for n in names if n not in opened]
+    frames = [n for n in rest if n.startswith(("frame_", "body_")) and n[-8:-4].isdigit()]
+    others = [n for n in rest if n not in frames] + ([f"{len(frames)} frame files"] if frames else [])
+    head = f"wrote {os.path.join(outdir, '')}: " + _and(opened or others)
+    if opened and rest:
+        head += f" (and {len(rest)} more: {', '.join(others)})"
+    return head
+
+
+def _and(words):
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]

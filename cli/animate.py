@@ -4,11 +4,13 @@ from types import SimpleNamespace
 import click
 
 from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
-from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs
+from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs, wrote_line
 from ._progress import Progress
 from .drape import body_targets, morph_options, user_files
 
 #: Files an animation writes into OUT (removed before a new run writes there).
+#: Exit code when frames have the skin through the cloth (the simulation's fault: quality["simulation_frames"]).
+SIMULATION_FAULT = 5
 OUTPUT_GLOBS = ("frame_*.obj", "body_*.obj", "animation.glb", "preview.gif", "report.json")
 
 
@@ -68,7 +70,9 @@ def animate(ctx, garment, body_path, motion, speed, joint_map, travel, frames, f
     every --every frames (metres, Y up), OUT/animation.glb (body and garment
     animated, for Blender or three.js), OUT/report.json (every frame's skin
     through the cloth, yarn strain and pressure, and the time per frame) and,
-    with --preview, OUT/preview.gif. Exit 4 if the simulation diverged.
+    with --preview, OUT/preview.gif. Exit 4 if the simulation diverged, 5 if
+    frames have the skin through the cloth (the simulation's fault, not the
+    garment's; a garment too tight for the motion is an answer: exit 0).
 
     \b
     Examples:
@@ -194,13 +198,17 @@ def _animate(o):
     written += _write_animation(o, setup, model, np.stack(bodies), np.stack(cloth))
     context = dict(garment=o.garment, garment_vertices=g.mesh.n_verts, body=body.description, material=o.material,
                    travel=o.travel, outputs=written, total_time_s=round(time.perf_counter() - o.t_start, 3))
-    report = animation_report(drape, anim, settings, **context)
+    report = animation_report(drape, anim, settings, limit=setup.material.wearable_stretch, **context)
     write_json(os.path.join(o.outdir, "report.json"), report)
     if o.json_path:
         write_json(o.json_path, report)
     if not o.quiet:
         _summary(report)
-        click.echo(f"wrote {len(written)} files and report.json in {o.outdir}")
+        click.echo(wrote_line(o.outdir, written + [os.path.join(o.outdir, "report.json")]))
+    if report["quality"]["simulation_frames"]:
+        click.echo(f"Error: {report['quality']['simulation_frames']} frame(s) with the skin through the cloth: the "
+                   "simulation's fault, not the garment's (report.json: quality)", err=True)
+        return SIMULATION_FAULT
     return 0
 
 
@@ -231,7 +239,6 @@ def _summary(report):
     if q["passed"]:
         click.echo("  every frame meets the quality bars (<= 2 mm deep, <= 1 % inside, strain p99 <= 8 %)")
     else:
-        f = q["failed_frames"]
-        click.echo(f"  {len(f)} frame(s) miss the quality bars, first frame {f[0]['frame']}: {f[0]['why']}")
+        click.echo(f"  {len(q['failed_frames'])} frame(s) miss the quality bars: {q['verdict']}")
     if report.get("settled") is not None:
         click.echo(f"  {'settled' if report['settled'] else 'NOT settled'} in the final pose")

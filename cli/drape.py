@@ -5,8 +5,9 @@ from types import SimpleNamespace
 import click
 
 from . import morph as _morph
-from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
-from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs
+from ._common import (FILE_UNITS, EngineChoice, check_output_path, fit_table_lines, handle_errors, interruption,
+                      write_json)
+from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs, wrote_line
 from ._progress import Progress
 
 #: ``vfit morph`` options reused here (same names, types and help), so the commands agree.
@@ -251,7 +252,7 @@ def _drape(o):
         return _interrupted_writing(setup, result, o, written, context, exc)
     if not o.quiet:
         _summary(g, setup, result, report)
-        click.echo(f"wrote {', '.join(written + [os.path.join(o.outdir, 'report.json')])}")
+        click.echo(wrote_line(o.outdir, written + [os.path.join(o.outdir, "report.json")]))
     return 0 if result.converged else _unsettled(setup, result, settings, report)
 
 
@@ -362,7 +363,8 @@ def _finish(setup, result, model, o, written, context, elapsed):
     from vfit_engine.drape import drape_report
     from vfit_engine.fit.maps import MAP_UNITS, fit_maps
     from vfit_engine.fit.outputs import write_fit_ply, write_preview, write_scene
-    from vfit_engine.fit.table import FitTable, summary_line
+    from vfit_engine.fit.table import FitTable
+    from vfit_engine.fit.verdict import summary_line, too_tight
     from vfit_engine.io.mesh import write_mesh
 
     if result.fine is not None:  # the subdivided cloth as simulated (no UVs: its vertices are not the garment's)
@@ -385,12 +387,13 @@ def _finish(setup, result, model, o, written, context, elapsed):
     write_scene(paths["scene.glb"], setup, result.pos, model, maps, o.map_name)
     written.append(paths["scene.glb"])
     if o.preview:
-        write_preview(paths["preview.png"], setup, result.pos, model, maps, o.map_name)
+        write_preview(paths["preview.png"], setup, result.pos, model, maps, o.map_name, rows=rows)
         written.append(paths["preview.png"])
     if o.gif:
         _write_gif(paths["drape.gif"], setup, model, o.gif_frames + [result.pos])
         written.append(paths["drape.gif"])
     fit = dict(fit=rows, fit_summary=summary_line(rows),
+               too_tight=too_tight(rows, setup.material.wearable_stretch),
                fit_units=dict(girth="cm", ease="cm", strain="fraction", pressure="kPa"),
                fit_maps=dict(file="fit.ply", properties=MAP_UNITS))
     return drape_report(setup, result, outputs=written, total_time_s=elapsed, **fit, **context)
@@ -428,13 +431,19 @@ def _summary(g, setup, result, report):
                f"max {100 * m['max_strain']:.2f} %; shear p99 {m['shear_p99_deg']:.1f} deg, "
                f"max {m['shear_max_deg']:.1f} deg" + ("  (graded to this body: --rest graded)"
                                                       if setup.info["rest"] == "graded" else ""))
-    for t in m.get("too_tight", ()):
-        click.echo(f"  too tight at the {t['part']}: stretched up to {100 * t['max_strain']:.1f} % (p99 "
-                   f"{100 * t['p99_strain']:.1f} %), beyond the {100 * t['fabric_limit']:.0f} % "
-                   f"{setup.material.name} gives: it cannot be worn there")
+    _fit_table(report["fit"], setup.material)
+    for t in report["too_tight"]:
+        need = t.get("required_strain") or 0.0
+        click.echo(f"  too tight to wear at the {t['region']}: the cloth round it is stretched "
+                   f"{100 * t['stretch']:.1f} %" + (f" (the body needs >= {100 * need:.1f} %)" if need > 0 else "")
+                   + f", beyond the {100 * t['fabric_limit']:.0f} % {setup.material.name} gives: it cannot be worn")
     click.echo(f"  fit: {report['fit_summary']}")
-    for o in report["tight_openings"]:
-        x, y, z = (100 * c for c in o["centre_m"])
-        click.echo(f"  tight: the opening of {o['vertices']} vertices at ({x:.1f}, {y:.1f}, {z:.1f}) cm is "
-                   f"{o['rest_length_mm'] / 10:.1f} cm round, the body under it {o['body_tape_mm'] / 10:.1f} cm: "
-                   f"it must stretch >= {100 * o['required_strain']:.1f} %")
+
+
+def _fit_table(rows, material):
+    """The fit table as people read it: one row per region, its verdict by the one rule (vfit_engine.fit.verdict)."""
+    if not rows:
+        return
+    click.echo(f"  fit per region (* decides a size; stretch of the cloth round it, {material.name} gives "
+               f"{100 * material.wearable_stretch:.0f} %):")
+    click.echo("\n".join("    " + line for line in fit_table_lines(rows)))

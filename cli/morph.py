@@ -14,9 +14,13 @@ FAILURE_SECONDS = 2.6
 GIRTH_OPTIONS = ("bust", "underbust", "waist", "hips", "neck", "upper_arm", "thigh", "calf")
 
 
+#: other names of an option: a man's chest is the girth a woman's bust is (one measurement, one target)
+ALIASES = {"bust": ("--chest",)}
+
+
 def girth_option(name, help_text):
-    return click.option(f"--{name.replace('_', '-')}", name, type=Quantity("cm", 1, 400), default=None,
-                        help=help_text)
+    return click.option(f"--{name.replace('_', '-')}", *ALIASES.get(name, ()), name, type=Quantity("cm", 1, 400),
+                        default=None, help=help_text)
 
 
 @click.command()
@@ -25,7 +29,7 @@ def girth_option(name, help_text):
 @click.option("--height", type=Quantity("cm", 50, 300), default=None, help="Stature (top of head to sole), cm.")
 @click.option("--weight", type=Quantity("kg", 10, 500), default=None,
               help="Body mass, kg (met through body volume x 985 kg/m^3).")
-@girth_option("bust", "Bust girth, cm.")
+@girth_option("bust", "Bust girth (men: chest; --chest is the same option), cm.")
 @girth_option("underbust", "Underbust girth, cm.")
 @girth_option("waist", "Waist girth, cm.")
 @girth_option("hips", "Hip girth, cm.")
@@ -93,7 +97,8 @@ def morph(gender, height, weight, definition, search_time, output, json_path, qu
 
     achieved = res.measurement.cm()
     start = res.start.cm()
-    rows = _table_rows(res, targets, weight, achieved, start, NAMES)
+    male = gender == "male" or (not isinstance(gender, str) and float(gender) >= 0.5)
+    rows = _table_rows(res, targets, weight, achieved, start, NAMES, male)
     for line in res.warnings:
         click.echo(f"warning: {line}", err=True)
     if not quiet:
@@ -153,12 +158,13 @@ def _source():
     return CITATION
 
 
-def _table_rows(res, targets, weight, achieved, start, names):
-    """The printed table: target (or the estimate), achieved, error and start of every measurement."""
+def _table_rows(res, targets, weight, achieved, start, names, male=False):
+    """The printed table: target (or the estimate), achieved, error and start of every measurement (a man's bust
+    named chest)."""
     rows = []
     for k in names:
         want = targets.get(k)
-        rows.append([f"{k} (cm)", f"{want * 100:.2f}" if want is not None else _estimate(res, k, 100.0),
+        rows.append([f"{'chest' if male and k == 'bust' else k} (cm)", f"{want * 100:.2f}" if want is not None else _estimate(res, k, 100.0),
                      f"{achieved[k]:.2f}", f"{(achieved[k] - want * 100) * 10:+.2f}" if want is not None else "",
                      f"{start[k]:.2f}"])
     rows.append(["mass (kg)", f"{weight:.2f}" if weight else _estimate(res, "mass", 1.0),

@@ -3,7 +3,7 @@ from types import SimpleNamespace
 
 import click
 
-from ._common import FILE_UNITS, check_output_path, fmt_table, handle_errors, interruption, write_json
+from ._common import FILE_UNITS, check_output_path, fit_table_lines, handle_errors, interruption, write_json
 from ._outdir import check_outputs
 from ._progress import Progress, cloth_kernels_cached
 from .drape import body_targets, morph_options, user_files
@@ -43,18 +43,19 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
     letter size is a girth size); the garment as given is the size whose
     centre is nearest its own body (it says which). Each size is draped at its
     own size on the customer's body, the sizes in parallel; it prints the fit
-    of every size (region, body and garment girth, ease, largest yarn strain,
-    verdict; * marks the key regions) and the recommended size.
+    of every size (region, body and garment girth, ease, the stretch of the
+    cloth round it, verdict; * marks the key regions, "estimated" a girth the
+    customer did not give) and the recommended size.
 
-    The rule: the smallest size with no tight verdict at a key region
-    (chest/bust, waist, hips where the garment covers them); a tight cuff or
-    hem elsewhere does not change the size. If every size is tight there, the
-    largest, saying where it is tight. Exit 3 when no size could be judged
+    The rule: the smallest size with no tight verdict (tight or too tight to
+    wear) at a key region (chest/bust, waist, hips where the garment covers
+    them); a tight cuff or hem elsewhere does not change the size. If every
+    size is tight there, the largest, saying where it is tight. Exit 3 when no size could be judged
     (every drape diverged or failed).
 
     \b
     Examples:
-      vfit size male_casualsuit02.obj --gender male --height 180 --bust 98
+      vfit size male_casualsuit02.obj --gender male --height 180 --chest 98
       vfit size suit.obj --body customer.obj --sizes S,M,L --json fit.json
     """
     import os
@@ -121,12 +122,16 @@ def _tables(res):
     """The fit of every size, as people read it."""
     own, c = res["garment_size"], res["customer"]
     chest = "chest" if res["gender"] == "male" else "bust"
+    est = set(res.get("customer_estimated") or ())
+
+    def given(name, label):
+        return f"{label} {c[name]:.1f}" + (" (estimated)" if name in est else "")
+
     click.echo(f"vfit size: {res['garment']}: the garment as given is size {own['size']} (made on a {own['measure']} "
                f"of {own['body_cm']:.1f} cm; centre of {own['size']}: {own['centre_cm']} cm)")
-    click.echo(f"customer: {chest} {c['bust']:.1f}, waist {c['waist']:.1f}, hips {c['hips']:.1f}, height "
+    click.echo(f"customer: {given('bust', chest)}, {given('waist', 'waist')}, {given('hips', 'hips')}, height "
                f"{c['height']:.1f} cm; sizes graded at that height; {len(res['sizes'])} sizes in "
                f"{res['wall_s']:.1f} s on {res['workers']} process{'es' if res['workers'] > 1 else ''}")
-    head = ["region", "body cm", "garment cm", "ease cm", "max strain %", "verdict"]
     for s in res["sizes"]:
         cc = s["centre_cm"]
         click.echo("")
@@ -139,9 +144,6 @@ def _tables(res):
         click.echo(title)
         if not s.get("fit"):
             continue
-        rows = [[r["region"] + ("*" if r.get("key") else ""), f"{r['body_girth_cm']:.1f}",
-                 f"{r['garment_girth_cm']:.1f}", f"{r['ease_cm']:+.1f}", f"{100 * r['max_strain']:.1f}", r["verdict"]]
-                for r in s["fit"]]
-        click.echo("\n".join("  " + line for line in fmt_table(rows, head).splitlines()))
+        click.echo("\n".join("  " + line for line in fit_table_lines(s["fit"])))
         click.echo(f"  {s['summary']}")
     click.echo("")

@@ -15,9 +15,9 @@ from click.testing import CliRunner
 from vfit_cli.main import cli
 from vfit_engine.batch.job import load_job
 from vfit_engine.batch.runner import local_cluster, run_batch
+from vfit_engine.fit.verdict import VERDICTS
 
 DEMO_SKIRT = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
-VERDICTS = {"tight", "fitted", "loose"}
 
 pytestmark = pytest.mark.slow
 

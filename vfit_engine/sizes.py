@@ -23,9 +23,11 @@
    (``prepare_drape(garment_X, customer, reference=size_body_X, rest="garment")``, then
    ``run_drape``): the graded garment sits on its size body as a MakeHuman garment sits on its own,
    so its binding places it and carries it to the customer. The fit table
-   (:func:`vfit_engine.fit.table.fit_table`) says, per body region, tight, fitted or loose.
+   (:func:`vfit_engine.fit.table.fit_table`) says, per body region, too tight to wear, tight, fitted,
+   loose or too loose.
    The sizes run in parallel processes (:func:`try_sizes`; one Numba thread each).
-4. **The rule** (:func:`recommend`): the smallest size with no ``tight`` verdict at a *key* region
+4. **The rule** (:func:`recommend`): the smallest size with no ``tight`` or ``too tight to wear`` verdict
+   (:func:`vfit_engine.fit.verdict.is_tight`, the one rule's verdicts of the fit table) at a *key* region
    (the regions that decide a size: chest/bust, waist, hips where the garment covers them); a tight
    opening elsewhere (a cuff, a sleeve hem) does not change the size. If every size is tight at a key
    region, the largest, saying that it is still tight and where. A size whose drape diverged or
@@ -51,7 +53,7 @@ from vfit_engine.body.resolve import Body, default_body, resolve_body
 from vfit_engine.drape import DrapeDiverged, DrapeSettings, prepare_drape, run_drape
 from vfit_engine.drape.setup import garment_gender
 from vfit_engine.errors import InputError, VfitError
-from vfit_engine.fit.table import summary_line
+from vfit_engine.fit.verdict import is_tight, summary_line
 from vfit_engine.garment.garment import load_garment
 from vfit_engine.garment.placement import place_garment
 from vfit_engine.garment.transfer import transfer_garment
@@ -67,8 +69,8 @@ SIZES = {
 #: The sizes, smallest first.
 SIZE_NAMES = tuple(s[0] for s in SIZES["female"])
 #: The rule of :func:`recommend`, in words (``vfit size --help`` and the JSON say it).
-RULE = ("the smallest size with no tight verdict at a key region (chest/bust, waist, hips where the garment "
-        "covers them); if every size is tight there, the largest, saying where it is tight")
+RULE = ("the smallest size with no tight verdict (tight or too tight to wear) at a key region (chest/bust, waist, "
+        "hips where the garment covers them); if every size is tight there, the largest, saying where it is tight")
 #: Statuses of a tried size: judged on its settled drape, on its last frame, or not judged.
 STATUSES = ("settled", "not settled", "diverged", "failed")
 #: Statuses whose fit table counts.
@@ -376,6 +378,7 @@ def try_sizes(garment_path, customer, sizes=None, workers=None, progress=None, u
     out = dict(recommended=None, reason=None, rule=RULE, garment=str(garment_path), gender=gender, garment_size=own,
                size_height_cm=round(100 * height, 2),
                customer={k: round(100 * v, 2) for k, v in meas.values.items()},
+               customer_estimated=_estimated(body.description, ("bust", "waist", "hips")),
                sizes=[done[s] for s in names], workers=n_workers)
     out["recommended"], out["reason"] = recommend(out)
     out["wall_s"] = round(time.perf_counter() - t0, 3)
@@ -436,8 +439,18 @@ def _where(rows):
         stretch = r.get("girth_strain", r.get("max_strain"))
         if stretch is not None:
             bits.append(f"stretched {100 * stretch:.1f} %")
+        if r.get("verdict") == "too tight to wear":  # the rule's word where "tight" says too little
+            bits.insert(0, r["verdict"])
         parts.append(_region(r["region"]) + (f" ({', '.join(bits)})" if bits else ""))
     return "the " + _join(parts)
+
+
+def _estimated(description, names):
+    """Which of ``names`` the customer did not give (the body model estimated them): a body built to
+    measurements (``description``: :class:`vfit_engine.body.resolve.Body`'s) gives those not among its targets."""
+    if description.get("source") != "morph":
+        return []
+    return [n for n in names if n not in (description.get("targets_cm") or {})]
 
 
 def _region(name):
@@ -470,7 +483,7 @@ def recommend(results):
     notes = [f"{s['size']} not judged ({s.get('status')}: {s.get('message')})" for s in sizes if s not in judged]
     if not judged:
         return None, "no size could be judged: " + "; ".join(notes)
-    tight = {s["size"]: [r for r in s["fit"] if r.get("key") and r.get("verdict") == "tight"] for s in judged}
+    tight = {s["size"]: [r for r in s["fit"] if r.get("key") and is_tight(r)] for s in judged}
     pick = next((s for s in judged if not tight[s["size"]]), None)
     if pick is None:
         pick = judged[-1]

@@ -4,6 +4,16 @@ GLB and the preview GIF.
 The quality bars of every frame (issue 13, section 5; the drape's surface definition): no sampled point of
 the cloth surface deeper than :data:`MAX_DEPTH_MM` in the body, at most :data:`MAX_INSIDE_PERCENT` of the
 samples inside, yarn strain p99 at most :data:`MAX_P99_STRAIN`.
+
+A frame that misses a bar is named with what the user should make of it (``cause`` of each failed frame,
+``verdict`` of the whole):
+
+* ``simulation``: the skin came through the cloth (the depth or inside bar): the collision let it through,
+  the picture is wrong there, not the garment; the fit is not to be judged by those frames
+  (``vfit animate`` exits 5);
+* ``garment``: the cloth stays outside the skin but the motion stretches it past the strain bar: the garment is
+  too tight for the motion (beyond what the fabric gives when its p99 strain is over
+  ``Material.wearable_stretch``): an answer about the garment, not a fault (exit 0).
 """
 from __future__ import annotations
 
@@ -26,9 +36,11 @@ FRAME_KEYS = ("time_s", "surface_inside_percent", "surface_max_depth_mm", "surfa
 GIF_FRAMES = 90
 
 
-def quality(figures, first=1):
+def quality(figures, first=1, limit=None):
     """The frames from ``first`` on that miss a quality bar (module docstring): dict ``passed``,
-    ``failed_frames`` (frame, why), ``bars``."""
+    ``failed_frames`` (frame, why, cause), ``simulation_frames`` and ``garment_frames`` (how many of each
+    cause), ``verdict`` (what the user should make of it, None when every frame passes) and ``bars``;
+    ``limit`` is the fabric's wearable stretch (fraction), or None."""
     failed = []
     for k, f in enumerate(figures[first:], start=first):
         why = []
@@ -36,18 +48,35 @@ def quality(figures, first=1):
             why.append(f"surface {f['surface_max_depth_mm']:.2f} mm deep")
         if f["surface_inside_percent"] > MAX_INSIDE_PERCENT:
             why.append(f"{f['surface_inside_percent']:.2f} % inside")
+        through = bool(why)
         if f["p99_strain"] > MAX_P99_STRAIN:
             why.append(f"strain p99 {100 * f['p99_strain']:.1f} %")
         if why:
-            failed.append(dict(frame=k, why=", ".join(why)))
-    return dict(passed=not failed, failed_frames=failed,
+            failed.append(dict(frame=k, why=", ".join(why), cause="simulation" if through else "garment"))
+    sim = [f for f in failed if f["cause"] == "simulation"]
+    worn = [f for f in failed if f["cause"] == "garment"]
+    verdict = None
+    if sim:
+        verdict = (f"the simulation's fault in {len(sim)} frame(s) (first {sim[0]['frame']}: {sim[0]['why']}): the "
+                   "skin came through the cloth there, which a garment does not do; do not judge the fit by those frames")
+    if worn:
+        top = max(figures[f["frame"]]["p99_strain"] for f in worn)
+        beyond = limit is not None and top > limit
+        text = (f"the garment is too tight for the motion in {len(worn)} frame(s) (first {worn[0]['frame']}: "
+                f"{worn[0]['why']}): the body stretches it up to {100 * top:.1f} % (p99)"
+                + ("" if limit is None else f", {'beyond' if beyond else 'within'} the {100 * limit:.0f} % the "
+                   "fabric gives"))
+        verdict = text if verdict is None else verdict + "; " + text
+    return dict(passed=not failed, failed_frames=failed, simulation_frames=len(sim), garment_frames=len(worn),
+                verdict=verdict,
                 bars=dict(surface_max_depth_mm=MAX_DEPTH_MM, surface_inside_percent=MAX_INSIDE_PERCENT,
                           p99_strain=MAX_P99_STRAIN))
 
 
-def animation_report(drape, anim, settings, **context):
+def animation_report(drape, anim, settings, limit=None, **context):
     """``report.json`` of an animation: the rest drape, the motion, every frame's figures, their maxima, the
-    quality bars and the time per frame split into posing, collision and cloth."""
+    quality bars (``limit``: the fabric's wearable stretch, :func:`quality`) and the time per frame split into
+    posing, collision and cloth."""
     n = max(anim.frames, 1)
     t = anim.timings
     ms = {k: round(1000.0 * v / n, 2) for k, v in t.items()}
@@ -68,7 +97,7 @@ def animation_report(drape, anim, settings, **context):
                           cloth=ms["cloth"], figures=ms["figures"]),
         collision_share=round(t["collision"] / sim, 4) if sim > 0 else 0.0,
         frames_per_second_wall=round(n / sim, 2) if sim > 0 else None,
-        maxima=maxima, quality=quality(figures), frame_figures=rows,
+        maxima=maxima, quality=quality(figures, limit=limit), frame_figures=rows,
         slowed_vertices=int(sum(f["slowed_vertices"] for f in figures)), max_speed_m_s=settings.max_speed,
         units=dict(mesh="m", time="s", depth="mm", strain="fraction", pressure="kPa", ms_per_frame="ms"))
 

@@ -49,6 +49,8 @@ RANGES = dict(height=(50.0, 300.0), weight=(10.0, 500.0), **{g: (1.0, 400.0) for
 #: Keys of a body spec besides the measurements (``id`` and ``customer`` are CSV synonyms of ``name``).
 BODY_KEYS = ("name", "gender", "definition", "body")
 NAME_SYNONYMS = ("id", "customer")
+#: Other names of a measurement: a man's chest is the girth a woman's bust is (``vfit morph --chest``).
+GIRTH_SYNONYMS = {"chest": "bust"}
 #: Keys of a garment entry and of the job's ``drape`` options.
 GARMENT_KEYS = ("path", "material", "sizes", "units")
 DRAPE_KEYS = ("frames", "collider", "rest", "transfer", "pin")
@@ -311,6 +313,11 @@ def body_spec(spec, where, base):
         if syn in spec:
             spec["name"] = spec.pop(syn)
     spec = {k.replace("-", "_"): v for k, v in spec.items()}
+    for syn, name in GIRTH_SYNONYMS.items():
+        if syn in spec:
+            if spec.get(name) not in (None, ""):
+                raise InputError(f"{where}: both {syn!r} and {name!r}: they are one measurement, give one")
+            spec[name] = spec.pop(syn)
     _known(spec, BODY_KEYS + tuple(RANGES), where)
     out = {}
     if spec.get("name") not in (None, ""):

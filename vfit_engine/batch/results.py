@@ -36,7 +36,7 @@ from vfit_engine.io.atomic import atomic_write
 _FIT_ROW = pa.struct([("region", pa.string()), ("key", pa.bool_()), ("body_girth_cm", pa.float64()),
                       ("garment_girth_cm", pa.float64()), ("ease_cm", pa.float64()), ("girth_strain", pa.float64()),
                       ("max_strain", pa.float64()), ("pressure_kpa_max", pa.float64()),
-                      ("required_strain", pa.float64()), ("verdict", pa.string())])
+                      ("required_strain", pa.float64()), ("verdict", pa.string()), ("estimated", pa.bool_())])
 #: Timings per task (s): the worker's start (first task only), grading (sized tasks), the drape's set-up, the
 #: drape, the fit table, the meshes (--keep-meshes), the whole task; ``body_s`` is the time its body took to
 #: build, once for all the tasks on that body (the same in each of their rows, not part of ``task_s``).
@@ -50,7 +50,8 @@ SCHEMA = pa.schema(
      ("surface_inside_percent", _F), ("surface_max_depth_mm", _F), ("vertex_inside_percent", _F),
      ("max_strain", _F), ("p99_strain", _F), ("shear_p99_deg", _F), ("shear_max_deg", _F),
      ("tight_openings", pa.int32()), ("fit_summary", _S)]
-    + [(f"{r}_{what}", t) for r in KEY_REGIONS for what, t in (("ease_cm", _F), ("strain", _F), ("verdict", _S))]
+    + [(f"{r}_{what}", t) for r in KEY_REGIONS
+       for what, t in (("ease_cm", _F), ("strain", _F), ("verdict", _S), ("estimated", pa.bool_()))]
     + [("fit", pa.list_(_FIT_ROW))]
     + [(f"{t}_s", _F) for t in TIMES]
     + [("worker", _S), ("pid", pa.int32()), ("started_at", pa.timestamp("ms", tz="UTC")),
@@ -77,7 +78,7 @@ def flat_row(row, task):
         r = next((r for r in fit if r["region"] in names), None)
         if r is not None:
             out.update({f"{key}_ease_cm": r["ease_cm"], f"{key}_strain": r["girth_strain"],
-                        f"{key}_verdict": r["verdict"]})
+                        f"{key}_verdict": r["verdict"], f"{key}_estimated": bool(r.get("estimated"))})
     for t in TIMES:
         out[f"{t}_s"] = (row.get("times_s") or {}).get(t)
     return out

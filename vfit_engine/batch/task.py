@@ -34,7 +34,7 @@ from vfit_engine.drape.setup import garment_gender
 from vfit_engine.errors import InputError, VfitError
 from vfit_engine.fit.maps import fit_maps
 from vfit_engine.fit.outputs import write_fit_ply
-from vfit_engine.fit.table import summary_line
+from vfit_engine.fit.verdict import summary_line
 from vfit_engine.garment.garment import load_garment
 from vfit_engine.io.mesh import write_mesh
 from vfit_engine.sizes import grade, size_body, size_gender

@@ -15,9 +15,11 @@
 * **Shear** is the change of the polygons' corner angles against the garment as given
   (``shear_p99_deg``, ``shear_max_deg``).
 * **Where it is tight**: each edge belongs to the body part under its midpoint (within ``PART_REACH``;
-  the body's skin-weight parts); ``strain_by_body_part`` gives each part's edges, p99 and max strain,
-  and ``too_tight`` the parts where some edge is stretched beyond what the fabric gives
-  (``Material.wearable_stretch``): the body forces more than the garment can take there -- it cannot be worn.
+  the body's skin-weight parts); ``strain_by_body_part`` gives each part's edges, p99 and max strain and
+  the share of its edges stretched beyond what the fabric gives (``Material.wearable_stretch``). These are
+  the cloth's local peaks (a seam, a pinned point), by rig part; whether a region can be worn is the fit
+  table's verdict (:mod:`vfit_engine.fit.verdict`, ``report.json["too_tight"]``), which reads the cloth
+  round the region as a whole.
 """
 from __future__ import annotations
 
@@ -167,7 +169,7 @@ def drape_metrics(setup, pos):
 
 
 def strain_by_part(setup, pos, edge_strain):
-    """``strain_by_body_part`` and ``too_tight`` (module docstring; empty without ``setup.body_parts``).
+    """``strain_by_body_part`` (module docstring; empty without ``setup.body_parts``).
 
     Parameters
     ----------
@@ -187,7 +189,7 @@ def strain_by_part(setup, pos, edge_strain):
     near = tri >= 0
     part[near] = setup.body_parts[setup.body_tris[tri[near], 0]]
     limit = float(setup.material.wearable_stretch)
-    rows, tight = {}, []
+    rows = {}
     for k, name in enumerate(PARTS):
         sel = (part == k) & (l0 > 0)
         if not sel.any():
@@ -195,12 +197,9 @@ def strain_by_part(setup, pos, edge_strain):
         s = edge_strain[sel]
         long_ = l0[sel] >= MIN_EDGE
         top = float(s[long_].max()) if long_.any() else 0.0
-        rows[name] = dict(edges=int(sel.sum()), p99_strain=float(np.percentile(s, 99)), max_strain=top)
-        if top > limit:
-            tight.append(dict(part=name, max_strain=top, p99_strain=rows[name]["p99_strain"],
-                              over_fabric_limit_percent=100.0 * float(np.mean(s > limit)), fabric_limit=limit))
-    tight.sort(key=lambda r: -r["max_strain"])
-    return dict(strain_by_body_part=rows, too_tight=tight)
+        rows[name] = dict(edges=int(sel.sum()), p99_strain=float(np.percentile(s, 99)), max_strain=top,
+                          over_fabric_limit_percent=100.0 * float(np.mean(s > limit)))
+    return dict(strain_by_body_part=rows)
 
 
 def vertex_strain(mesh, pos):

@@ -21,6 +21,7 @@ import numpy as np
 
 from vfit_engine.body.bodyio import body_mesh
 from vfit_engine.fit.maps import MAP_UNITS
+from vfit_engine.fit.verdict import tight_line
 from vfit_engine.io.gltf import ScenePart, write_scene_glb
 from vfit_engine.io.ply import write_ply
 from vfit_engine.preview import colour_map, render_views
@@ -99,9 +100,10 @@ def write_scene(path, setup, pos, model, maps, name="strain"):
                                      colors=map_colours(maps, name, setup.material))])
 
 
-def write_preview(path, setup, pos, model, maps, name="strain", title=None):
+def write_preview(path, setup, pos, model, maps, name="strain", title=None, rows=None):
     """``preview.png``: body and garment from the front, the side and the back, the garment coloured by the
-    map ``name`` (drawn through :func:`display_mesh`) with a colour bar in its unit."""
+    map ``name`` (drawn through :func:`display_mesh`) with a colour bar in its unit; with the fit table's ``rows``
+    the title says where it is tight (:func:`.verdict.tight_line`: the rows' verdicts)."""
     spec = PICTURE_MAPS[name]
     mesh = setup.garment.mesh
     garment = os.path.basename(str(setup.garment.source))
@@ -109,5 +111,6 @@ def write_preview(path, setup, pos, model, maps, name="strain", title=None):
     vmin, vmax, marks = map_range(name, setup.material)
     render_views(path, setup.body.surface, model.body_tris, verts, tris, values, label=spec["label"],
                  unit=spec["unit"], cmap=spec["cmap"], vmin=vmin, vmax=vmax, marks=marks,
-                 title=title or f"{garment}: {spec['label']}"
-                 + (" against the garment as given" if name == "strain" else ""))
+                 title=title or (f"{garment}: {tight_line(rows)}" if rows is not None else
+                                 f"{garment}: {spec['label']}" + (" against the garment as given" if name == "strain"
+                                                                  else "")))

@@ -16,20 +16,16 @@ round the region), ``garment_girth_cm`` (a tape round the draped garment in the 
 outside: the hull of the outermost garment loop that goes round the region; for an opening, its
 draped length), ``ease_cm`` (their difference), ``girth_strain`` (how far the cloth round the region
 is stretched: sum l / sum l0 - 1 over the garment's yarn edges that run round it within ``BAND`` of
-the plane, and no higher than where the body's arms join its torso: a man's chest is taken just under the
-armpits, and above them a shirt's edges run round its armholes and sleeve caps; for an opening, its
-draped length over its length as given), ``max_strain`` (the largest yarn strain there, edges >= 3 mm),
-``pressure_kpa_max`` (:mod:`.maps`) and the verdict:
+the plane (twice that where coarse cloth has no ring of edges so near: a suit's waist), and no higher
+than where the body's arms join its torso: a man's chest is taken just under the armpits, and above them
+a shirt's edges run round its armholes and sleeve caps; for an opening, its draped length over its length
+as given), ``max_strain`` (the largest yarn strain there, edges >= 3 mm),
+``pressure_kpa_max`` (:mod:`.maps`), ``estimated`` (the customer did not give this girth: the body model
+estimated it from the others) and ``verdict``: too tight to wear, tight, fitted, loose or too loose, by the
+one rule of :mod:`.verdict` (which every other output reads).
 
-* ``tight``  the cloth round the region is stretched by more than ``TIGHT_SHARE`` of the stretch the
-  fabric gives (``Material.wearable_stretch``: cotton 10 % -> 3 %, jersey 30 % -> 9 %, denim 5 % -> 1.5 %),
-  or (an opening) the body forces it wider than it is made (one edge beyond the fabric's limit does not
-  make a region tight: ``too_tight`` in the report lists those by body part);
-* ``loose``  not tight, and more than ``LOOSE_EASE_CM`` of the region's ease (bust, chest, underbust,
-  waist, hips 12 cm; neck 6; upper arm 8; thigh 10; openings 10);
-* ``fitted`` otherwise.
-
-``key`` marks the regions that decide a size (bust/chest, waist and hips).
+``key`` marks the regions that decide a size (bust/chest, waist and hips). A girth the customer gave that
+the garment does not go round has its row all the same (verdict ``not covered``, no garment figures).
 """
 from __future__ import annotations
 
@@ -39,6 +35,7 @@ from scipy.spatial import ConvexHull, cKDTree
 from vfit_engine.body.measure import Measurer
 from vfit_engine.body.segment import PARTS
 from vfit_engine.fit.maps import fit_maps
+from vfit_engine.fit.verdict import uncovered_row, verdict
 from vfit_engine.garment.openings import BodyLoops, check_openings
 from vfit_engine.geometry import winding_number
 from vfit_engine.section import MeshSections, rotation_to_y
@@ -49,15 +46,13 @@ BAND = 0.02
 TORSO_MARGIN = 0.03
 #: An edge runs round the region when its direction is within 60 degrees of the plane.
 ROUND_COS = 0.5
-#: Tight beyond this share of the fabric's stretch limit (module docstring).
-TIGHT_SHARE = 0.3
-#: Loose beyond this ease, cm (module docstring); openings use ``"opening"``.
-LOOSE_EASE_CM = {"bust": 12.0, "chest": 12.0, "underbust": 12.0, "waist": 12.0, "hips": 12.0, "neck": 6.0,
-                 "upper arm": 8.0, "thigh": 10.0, "opening": 10.0}
 #: Torso regions (vfit's tape girths) and limb regions (MakeHuman rulers), in table order.
 TORSO = ("bust", "underbust", "waist", "hips")
 LIMBS = (("neck", "neck-circ"), ("upper arm", "upperarm-circ"), ("thigh", "thigh-circ"))
 KEY_REGIONS = ("bust", "chest", "waist", "hips")
+#: A region's measurement as the body is built to it (``vfit morph``'s names: a man's chest is ``bust``).
+TARGET_NAME = {"bust": "bust", "chest": "bust", "underbust": "underbust", "waist": "waist", "hips": "hips",
+               "neck": "neck", "upper arm": "upper-arm", "thigh": "thigh"}
 
 
 def _hull(points_xz):
@@ -119,8 +114,8 @@ def _limb_planes(model, verts):
     return out
 
 
-def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND):
-    """Mask of the yarn edges that run round the region: both ends within ``BAND`` of the plane (and at
+def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND, band=BAND):
+    """Mask of the yarn edges that run round the region: both ends within ``band`` of the plane (and at
     most ``above`` over it), the edge within 60 degrees of it, and its midpoint inside the garment's hull
     (+ ``margin``)."""
     a, b = pos[edges[:, 0]], pos[edges[:, 1]]
@@ -130,7 +125,7 @@ def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND):
     along = np.abs(d @ plane.normal) <= ROUND_COS * np.maximum(length, 1e-12)
     mid = (0.5 * (a + b)) @ plane.rot.T
     inside = np.all(mid[:, [0, 2]] @ hull_eq[:, :2].T + hull_eq[:, 2] <= margin, axis=1)
-    return ((np.abs(off_a) <= BAND) & (np.abs(off_b) <= BAND) & (off_a <= above) & (off_b <= above) & along
+    return ((np.abs(off_a) <= band) & (np.abs(off_b) <= band) & (off_a <= above) & (off_b <= above) & along
             & inside)
 
 
@@ -142,6 +137,11 @@ class FitTable:
         model = self.measurer.model  # loaded by the Measurer when not given
         self.body_verts = np.ascontiguousarray(body.surface, dtype=np.float64)
         self.gender = body.gender
+        # a body built to measurements: the girths not given are the body model's estimates from the others
+        d = body.description or {}
+        given = d.get("targets_cm") if d.get("source") == "morph" else None
+        self.estimated = set() if given is None else {k for k, t in TARGET_NAME.items() if t not in given}
+        self.given = set() if given is None else {k for k, t in TARGET_NAME.items() if t in given}
         m = self.measurer.measure(self.body_verts, names=TORSO, mass=False)
         self.regions = []  # (region, side, plane, reach, body girth m)
         self._above = {}  # torso region -> how far above its plane its cloth counts (m)
@@ -202,7 +202,11 @@ class FitTable:
             if not loops:
                 continue  # the garment does not go round this region
             hull, girth, eq = loops[0]
-            sel = _round_edges(edges, pos, plane, eq, above=self._above.get(name, BAND)) & (l0 > 0)
+            for band in (BAND, 2 * BAND):  # coarse cloth (a suit's waist: rings 4 cm apart) has none within BAND
+                above = self._above.get(name, BAND)
+                sel = _round_edges(edges, pos, plane, eq, above=above if above < BAND else band, band=band) & (l0 > 0)
+                if sel.any():
+                    break
             if not sel.any():
                 continue
             strain = length[sel] / l0[sel] - 1.0
@@ -211,7 +215,13 @@ class FitTable:
             row = _row(name, side, body_girth, girth, float(length[sel].sum() / l0[sel].sum() - 1.0),
                        float(strain[long_].max()) if long_.any() else 0.0,
                        float(maps["pressure_kpa"][verts].max()), limit)
+            row["estimated"] = name in self.estimated
             out.append(row)
+        # a girth the customer gave has its row, also where the garment does not go round it
+        have = {r["region"] for r in out}
+        out += [uncovered_row(name, side, body_girth, name in KEY_REGIONS)
+                for name, side, _, _, body_girth, _ in self.regions
+                if name in self.given and f"{side} {name}".strip() not in have]
         out += self._opening_rows(setup, pos, maps, limit)
         return out
 
@@ -232,6 +242,7 @@ class FitTable:
             row = _row(name, side, o["body_tape_mm"] / 1000.0, draped, draped / rest - 1.0 if rest > 0 else 0.0,
                        float(maps["strain"][loop].max()), float(maps["pressure_kpa"][loop].max()), limit,
                        need=o["required_strain"])
+            row["estimated"] = False  # the body's own girth under the opening, not a customer's measurement
             rows.append(row)
         return rows
 
@@ -258,15 +269,13 @@ def _opening_name(part, piece, loop, chest_y):
 
 
 def _row(name, side, body_m, garment_m, girth_strain, max_strain, pressure, limit, need=None):
-    """One row of the table with its verdict (module docstring)."""
+    """One row of the table with its verdict (:func:`.verdict.verdict`)."""
     ease_cm = 100.0 * (garment_m - body_m)
-    tight = girth_strain > TIGHT_SHARE * limit or (need is not None and need > 0)
-    loose_at = LOOSE_EASE_CM["opening" if need is not None else name]
-    verdict = "tight" if tight else ("loose" if ease_cm > loose_at else "fitted")
     row = dict(region=f"{side} {name}".strip(), body_girth_cm=round(100.0 * body_m, 2),
                garment_girth_cm=round(100.0 * garment_m, 2), ease_cm=round(ease_cm, 2),
                girth_strain=round(girth_strain, 5), max_strain=round(max_strain, 5),
-               pressure_kpa_max=round(pressure, 3), verdict=verdict, key=name in KEY_REGIONS)
+               pressure_kpa_max=round(pressure, 3), verdict=verdict(name, girth_strain, ease_cm, limit, need),
+               key=name in KEY_REGIONS)
     if need is not None:
         row["required_strain"] = round(float(need), 5)
     return row
@@ -275,37 +284,3 @@ def _row(name, side, body_m, garment_m, girth_strain, max_strain, pressure, limi
 def fit_table(setup, pos, model=None, maps=None):
     """The fit table (module docstring) of a drape of ``setup`` ending at ``pos`` (n, 3) m."""
     return FitTable(setup.body, model).rows(setup, pos, maps)
-
-
-def summary_line(rows):
-    """One line for people, e.g. ``tight at the sleeve hems (+19 %, the body needs >= 17 %), fitted at the chest
-    and waist, loose at the hips (+13 cm ease)``; tight regions say how far the cloth round them is
-    stretched (and an opening the stretch the body forces on it), loose ones their ease."""
-    groups = {"tight": {}, "fitted": {}, "loose": {}}
-    for r in rows:
-        words = r["region"].split(" ", 1)
-        base = words[1] if words[0] in ("left", "right") and len(words) > 1 else r["region"]
-        figure = max(r["girth_strain"], 0.0) if r["verdict"] == "tight" else r["ease_cm"]
-        g = groups[r["verdict"]].setdefault(base, [0, -np.inf, 0.0])
-        g[0] += 1
-        g[1] = max(g[1], figure)
-        g[2] = max(g[2], r.get("required_strain", 0.0))
-    parts = []
-    for verdict, g in groups.items():
-        if not g:
-            continue
-        names = []
-        for base, (count, figure, need) in g.items():
-            label = _plural(base) if count > 1 else base
-            if verdict == "tight":
-                label += f" (+{100 * figure:.0f} %" + (f", the body needs >= {100 * need:.0f} %)" if need > 0 else ")")
-            elif verdict == "loose":
-                label += f" (+{figure:.0f} cm ease)"
-            names.append(label)
-        joined = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
-        parts.append(f"{verdict} at the {joined}" if verdict != "fitted" else f"fitted at the {joined}")
-    return ", ".join(parts) if parts else "no region the garment goes round"
-
-
-def _plural(name):
-    return {"hips": "hips", "bust": "bust", "chest": "chest", "waist": "waist"}.get(name, name + "s")
