@@ -46,15 +46,16 @@ def _apart(mesh, y):
     return len(torso) == 1 and any(r[1] < torso[0][0] for r in xs) and any(r[0] > torso[0][1] for r in xs)
 
 
-def bust_band(mesh, verts, breasts):
+def bust_band(mesh, verts, breasts, chest=False):
     """(lo, hi) m: from the bust points' mean height (most anterior breast vertex per side, 10 um below)
-    up, in 1 mm steps, to the last plane whose section shows the torso and both arms apart; where they
-    are not apart there, the one plane just under the armpits (the first apart plane going down)."""
+    up, in 1 mm steps, to the last plane whose section shows the torso and both arms apart, at most 3 cm
+    up (a man's ``chest``: 15 cm, just under his armpits); where they are not apart there, the one plane
+    just under the armpits (the first apart plane going down)."""
     y = np.mean([verts[idx[np.argmax(verts[idx, 2])], 1] for idx in breasts]) - 1e-5
     steps = np.arange(1, 151) * 0.001
     if _apart(mesh, y):
         top = y
-        for d in steps[:30]:  # at most 3 cm above the bust points
+        for d in steps if chest else steps[:30]:  # at most 3 cm above the bust points (a bust)
             if not _apart(mesh, y + d):
                 break
             top = y + d
@@ -83,23 +84,25 @@ def torso_hull_girth(mesh: trimesh.Trimesh, y: float) -> float:
     return float(np.linalg.norm(np.roll(hull, -1, axis=0) - hull, axis=1).sum())
 
 
-def tape_measure(verts, quads, breasts=None):
+def tape_measure(verts, quads, breasts=None, chest=False):
     """ISO-style girths (m) of a body: bust, underbust, waist, hips, height, at 1 mm plane steps.
 
     ``breasts``: :func:`breast_vertices` (read once and passed in by callers measuring many bodies).
+    ``chest``: a man's body, whose ``bust`` is his chest girth (ISO 8559-1 / EN 13402-1): the tape under the
+    armpits, in the one plane at the top of his band.
     """
     rulers = json.loads(RULERS.read_text())["rulers"]
     verts = np.asarray(verts)[:13380]
     tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     mesh = trimesh.Trimesh(verts, tris, process=False)
-    bust_lo, bust_hi = bust_band(mesh, verts, breast_vertices() if breasts is None else breasts)
+    bust_lo, bust_hi = bust_band(mesh, verts, breast_vertices() if breasts is None else breasts, chest)
     mean_y = {k: verts[rulers[k]["vertex_indices"], 1].mean() for k in ("underbust-circ", "hips-circ")}
     bands = {n: (mean_y[r] - lo, mean_y[r] + hi, mode) for n, (r, lo, hi, mode) in BANDS.items()}
     lo, hi, mode = bands["underbust"]
     hi = min(hi, bust_lo - 0.01)  # below the bust points by 1 cm, and 4 cm long at least
     bands["underbust"] = (min(lo, hi - 0.04), hi, mode)
     bands["waist"] = (*sorted((mean_y["hips-circ"], mean_y["underbust-circ"])), "min")
-    bands["bust"] = (bust_lo, bust_hi, "max")
+    bands["bust"] = (bust_hi if chest else bust_lo, bust_hi, "max")
     out = {"height": float(verts[:, 1].max() - verts[:, 1].min())}
     for name, (lo, hi, mode) in bands.items():
         ys = np.linspace(lo, hi, int(np.ceil((hi - lo) / 0.001 - 1e-9)) + 1)

@@ -219,7 +219,7 @@ def test_preview_garment_pixels_take_the_maps_colour(name, value, other):
 
 
 def test_a_chest_at_the_armpits_counts_only_the_cloth_below_them(body_model):
-    """A man whose chest is taken just under his armpits (180 cm, chest 106: the arms join the torso 24 mm
+    """A man whose chest is taken just under his armpits (180 cm, chest 106: the arms join the torso 26 mm
     above his bust points): his chest row counts the cloth from 2 cm below its plane up to where the arms
     join, not the armhole edges above; his waist row the full band. A ring of edges stepping up through the
     plane: those above the armpit level are left out."""

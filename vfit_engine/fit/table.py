@@ -142,6 +142,8 @@ class FitTable:
         model = self.measurer.model  # loaded by the Measurer when not given
         self.body_verts = np.ascontiguousarray(body.surface, dtype=np.float64)
         self.gender = body.gender
+        # no gender: a man's chest row keeps the bust band's plane, where his shirt's loop has not yet taken in
+        # its armholes, not his chest girth's under the armpits (docs/MEASUREMENTS.md)
         m = self.measurer.measure(self.body_verts, names=TORSO, mass=False)
         self.regions = []  # (region, side, plane, reach, body girth m)
         self._above = {}  # torso region -> how far above its plane its cloth counts (m)
