@@ -13,8 +13,10 @@ necklines). A region is measured in one plane:
 
 Figures of a row: ``body_girth_cm`` (a tape round the body in the plane: the convex hull of the loop
 round the region), ``garment_girth_cm`` (a tape round the draped garment in the same plane, over its
-outside: the hull of the outermost garment loop that goes round the region; for an opening, its
-draped length), ``ease_cm`` (their difference), ``girth_strain`` (how far the cloth round the region
+outside: the convex hull of the garment's own loop round the region, :func:`garment_girth` -- the torso
+loop of a shirt, not its sleeves or armholes, the sleeve round an arm, not the torso it joins; for an
+opening, its draped length), ``ease_cm`` (their difference: a garment stretched round the body has an
+ease of 2 pi times its gap to the skin, 1-2 cm for the drape's few millimetres), ``girth_strain`` (how far the cloth round the region
 is stretched: sum l / sum l0 - 1 over the garment's yarn edges that run round it within ``BAND`` of
 the plane, and no higher than where the body's arms join its torso: a man's chest is taken just under the
 armpits, and above them a shirt's edges run round its armholes and sleeve caps; for an opening, its
@@ -45,8 +47,6 @@ from vfit_engine.section import MeshSections, rotation_to_y
 
 #: Half-width of the band round a region's plane whose edges give its strain, m.
 BAND = 0.02
-#: A garment's loop round the torso counts within the torso's half width plus this, m (not its sleeves).
-TORSO_MARGIN = 0.03
 #: An edge runs round the region when its direction is within 60 degrees of the plane.
 ROUND_COS = 0.5
 #: Tight beyond this share of the fabric's stretch limit (module docstring).
@@ -71,6 +71,59 @@ def _hull(points_xz):
     return points_xz[h.vertices], float(h.area), h.equations
 
 
+def _distance_to_loop(points, loop):
+    """(k,) distance (m) of each of ``points`` (k, 2) from the closed polygon ``loop`` (m, 2)."""
+    a = loop
+    d = np.roll(loop, -1, axis=0) - a
+    t = np.einsum("kmj,mj->km", points[:, None, :] - a, d) / np.maximum(np.einsum("mj,mj->m", d, d), 1e-18)
+    near = a + np.clip(t, 0.0, 1.0)[..., None] * d
+    return np.linalg.norm(points[:, None, :] - near, axis=2).min(axis=1)
+
+
+def garment_girth(loops, centre, own, others=(), reach=np.inf):
+    """The tape round a garment's own loop round a body part, in the part's plane.
+
+    Of the garment's section loops that wind round ``centre`` (a sleeve beside the torso does not), the
+    points within ``reach`` of it that lie nearer the body part's own loop than any of the body's other
+    loops in the plane: where the plane cuts a shirt through its armholes, its loop runs out along the
+    sleeves and round the arms, no part of the chest; where an upper arm's plane cuts the shirt's side,
+    the torso's cloth is no part of the sleeve. The tape is the perimeter of their convex hull, over the
+    outside of the cloth as the body's tape goes over its skin.
+
+    Parameters
+    ----------
+    loops : list of (k, 2) float arrays, m
+        The garment's section loops in the plane (its horizontal frame, as ``MeshSections.loops`` gives).
+    centre : (2,) float, m
+        A point inside the body part's loop.
+    own : (m, 2) float, m
+        The body part's own loop in the plane (the torso, an arm, a thigh, the neck).
+    others : list of (m_i, 2) float arrays, m
+        The body's other loops in the plane (the arms beside the torso, the torso beside an arm).
+    reach : float, m
+
+    Returns
+    -------
+    (points (h, 2), perimeter m, equations (h, 3)) or None
+        The convex hull; None when no garment loop goes round the part or what is left of them does not
+        enclose ``centre``.
+    """
+    centre = np.asarray(centre, dtype=np.float64)
+    kept = []
+    for loop in loops:
+        if len(loop) < 3 or abs(winding_number(loop, centre)) <= 0.5:
+            continue
+        loop = loop[np.linalg.norm(loop - centre, axis=1) <= reach]
+        if len(loop) and len(others):
+            mine = _distance_to_loop(loop, own)
+            loop = loop[mine <= np.min([_distance_to_loop(loop, o) for o in others], axis=0)]
+        kept.append(loop)
+    hull = _hull(np.concatenate(kept)) if kept else None
+    if hull is None or np.any(hull[2][:, :2] @ centre + hull[2][:, 2] > 0.0):
+        return None
+    return hull
+
+
 class _Plane:
     """A cutting plane through ``centre`` with unit ``normal``, and the frame that makes it horizontal."""
 
@@ -81,22 +134,21 @@ class _Plane:
         c = self.rot @ self.centre
         self.height, self.centre_xz = float(c[1]), c[[0, 2]]
 
-    def loops_round(self, sections, verts, reach, half_width=None):
-        """Hulls (point arrays, perimeter, equations) of the section loops that go round the centre,
-        none of whose points lies farther than ``reach`` (m) from it, outermost first. With ``half_width``
-        (m) the hull takes only the loop's points within it of the centre across (x): a loose top's loop
-        at the chest runs out along the sleeves, which are no part of the chest."""
-        out = []
-        for loop in sections.loops(np.ascontiguousarray(verts @ self.rot.T), self.height):
-            if len(loop) < 3 or np.max(np.linalg.norm(loop - self.centre_xz, axis=1)) > reach:
-                continue
-            if abs(winding_number(loop, self.centre_xz)) > 0.5:
-                if half_width is not None:
-                    loop = loop[np.abs(loop[:, 0] - self.centre_xz[0]) <= half_width]
-                h = _hull(loop)
-                if h is not None:
-                    out.append(h)
-        return sorted(out, key=lambda h: -h[1])
+    def section(self, sections, verts):
+        """The section loops (k, 2) of a mesh (``verts`` (n, 3) m) in the plane, in its horizontal frame."""
+        return sections.loops(np.ascontiguousarray(verts @ self.rot.T), self.height)
+
+    def body_part(self, sections, verts, reach):
+        """(own loop, its hull's perimeter m, the other loops) of the body's smallest section loop that
+        goes round the centre with no point farther than ``reach`` (m) from it; None when none does."""
+        loops = [lp for lp in self.section(sections, verts) if len(lp) >= 3]
+        round_ = [(h[1], i) for i, lp in enumerate(loops)
+                  if np.max(np.linalg.norm(lp - self.centre_xz, axis=1)) <= reach
+                  and abs(winding_number(lp, self.centre_xz)) > 0.5 and (h := _hull(lp)) is not None]
+        if not round_:
+            return None
+        girth, i = min(round_)
+        return loops[i], girth, loops[:i] + loops[i + 1:]
 
 
 def _limb_planes(model, verts):
@@ -145,7 +197,7 @@ class FitTable:
         # no gender: a man's chest row keeps the bust band's plane, where his shirt's loop has not yet taken in
         # its armholes, not his chest girth's under the armpits (docs/MEASUREMENTS.md)
         m = self.measurer.measure(self.body_verts, names=TORSO, mass=False)
-        self.regions = []  # (region, side, plane, reach, body girth m)
+        self.regions = []  # (region, side, plane, reach, body girth m, body part's loop, other body loops)
         self._above = {}  # torso region -> how far above its plane its cloth counts (m)
         self.chest_y = float(m.planes["bust"])
         g = self.gender
@@ -154,17 +206,17 @@ class FitTable:
         for name in TORSO:
             if name == "underbust" and not female:
                 continue
-            centre, half = self._torso_centre(m.planes[name])
+            centre, own, others = self._torso_loops(m.planes[name])
             label = "chest" if name == "bust" and not female else name
-            self.regions.append((label, "", _Plane(centre, (0.0, 1.0, 0.0)), 1.0, float(m.values[name]), half))
+            self.regions.append((label, "", _Plane(centre, (0.0, 1.0, 0.0)), 1.0, float(m.values[name]), own, others))
             # only a bust/chest plane reaches the armholes (lower, hanging forearms can touch a heavy waist)
             self._above[label] = self._below_armpits(m.planes[name]) if name == "bust" else BAND
         # the body's sections round the openings, built once for every drape on this body
         self.loops = BodyLoops(self.body_verts, model.body_tris)
         for name, side, plane, reach in _limb_planes(model, self.body_verts):
-            loops = plane.loops_round(self.measurer.sections, self.body_verts, reach)
-            if loops:
-                self.regions.append((name, side, plane, reach, loops[-1][1], None))
+            part = plane.body_part(self.measurer.sections, self.body_verts, reach)
+            if part is not None:
+                self.regions.append((name, side, plane, reach, part[1], part[0], part[2]))
 
     def _below_armpits(self, y):
         """How far above a torso plane at ``y`` the cloth round it counts: ``BAND``, or less where the body's
@@ -175,18 +227,19 @@ class FitTable:
         below = self.measurer.sections.apart(self.body_verts, [y])[0]
         return float(steps[int(np.argmin(apart))] - 0.001) if below and not apart.all() else BAND
 
-    def _torso_centre(self, y):
-        """Centre (3,) of the torso loop's hull at height ``y`` (the largest loop spanning x = 0) and the
-        half width (m) across which a garment's loop counts there: the torso's, plus ``TORSO_MARGIN``."""
-        best = None
-        for loop in self.measurer.sections.loops(self.body_verts, y):
+    def _torso_loops(self, y):
+        """(centre (3,) of the torso loop's hull, the torso loop (k, 2), the body's other loops) at height
+        ``y``: the torso's is the largest loop spanning x = 0."""
+        loops = [lp for lp in self.measurer.sections.loops(self.body_verts, y) if len(lp) >= 3]
+        best, at = None, None
+        for i, loop in enumerate(loops):
             h = _hull(loop)
             if h is not None and loop[:, 0].min() <= 0.0 <= loop[:, 0].max() and (best is None or h[1] > best[1]):
-                best = h
+                best, at = h, i
         if best is None:
-            return np.array([0.0, y, 0.0]), None
+            return np.array([0.0, y, 0.0]), np.zeros((0, 2)), []
         c = best[0].mean(axis=0)
-        return np.array([c[0], y, c[1]]), float(np.abs(best[0][:, 0] - c[0]).max()) + TORSO_MARGIN
+        return np.array([c[0], y, c[1]]), loops[at], loops[:at] + loops[at + 1:]
 
     def rows(self, setup, pos, maps=None):
         """The table (module docstring) of ``setup``'s garment at ``pos``: list of dict."""
@@ -199,11 +252,12 @@ class FitTable:
         length = np.linalg.norm(pos[edges[:, 1]] - pos[edges[:, 0]], axis=1)
         limit = float(setup.material.wearable_stretch)
         out = []
-        for name, side, plane, reach, body_girth, half in self.regions:
-            loops = plane.loops_round(sections, pos, max(reach, 3.0 * body_girth / (2 * np.pi)), half)
-            if not loops:
+        for name, side, plane, reach, body_girth, own, others in self.regions:
+            tape = garment_girth(plane.section(sections, pos), plane.centre_xz, own, others,
+                                 max(reach, 3.0 * body_girth / (2 * np.pi)))
+            if tape is None:
                 continue  # the garment does not go round this region
-            hull, girth, eq = loops[0]
+            hull, girth, eq = tape
             sel = _round_edges(edges, pos, plane, eq, above=self._above.get(name, BAND)) & (l0 > 0)
             if not sel.any():
                 continue
