@@ -126,7 +126,9 @@ def _tables(res):
     click.echo(f"customer: {chest} {c['bust']:.1f}, waist {c['waist']:.1f}, hips {c['hips']:.1f}, height "
                f"{c['height']:.1f} cm; sizes graded at that height; {len(res['sizes'])} sizes in "
                f"{res['wall_s']:.1f} s on {res['workers']} process{'es' if res['workers'] > 1 else ''}")
-    head = ["region", "body cm", "garment cm", "ease cm", "max strain %", "verdict"]
+    # garment cm: draped, round the body; made cm: the garment's own girth there, unstretched (its size);
+    # stretch %: how far the cloth round the region is stretched
+    head = ["region", "body cm", "garment cm", "made cm", "ease cm", "stretch %", "max strain %", "verdict"]
     for s in res["sizes"]:
         cc = s["centre_cm"]
         click.echo("")
@@ -140,8 +142,9 @@ def _tables(res):
         if not s.get("fit"):
             continue
         rows = [[r["region"] + ("*" if r.get("key") else ""), f"{r['body_girth_cm']:.1f}",
-                 f"{r['garment_girth_cm']:.1f}", f"{r['ease_cm']:+.1f}", f"{100 * r['max_strain']:.1f}", r["verdict"]]
-                for r in s["fit"]]
+                 f"{r['garment_girth_cm']:.1f}", f"{r['garment_made_cm']:.1f}" if "garment_made_cm" in r else "-",
+                 f"{r['ease_cm']:+.1f}", f"{100 * r['girth_strain']:+.1f}", f"{100 * r['max_strain']:.1f}",
+                 r["verdict"]] for r in s["fit"]]
         click.echo("\n".join("  " + line for line in fmt_table(rows, head).splitlines()))
         click.echo(f"  {s['summary']}")
     click.echo("")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, cKDTree
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 RULERS = DATA / "rulers.json"
@@ -84,12 +84,13 @@ def torso_hull_girth(mesh: trimesh.Trimesh, y: float) -> float:
     return float(np.linalg.norm(np.roll(hull, -1, axis=0) - hull, axis=1).sum())
 
 
-def tape_measure(verts, quads, breasts=None, chest=False):
+def tape_measure(verts, quads, breasts=None, chest=False, planes=False):
     """ISO-style girths (m) of a body: bust, underbust, waist, hips, height, at 1 mm plane steps.
 
     ``breasts``: :func:`breast_vertices` (read once and passed in by callers measuring many bodies).
     ``chest``: a man's body, whose ``bust`` is his chest girth (ISO 8559-1 / EN 13402-1): the tape under the
-    armpits, in the one plane at the top of his band.
+    armpits, in the one plane at the top of his band. ``planes``: also return the height (m) of each girth's
+    plane (the 1 mm step where it was found).
     """
     rulers = json.loads(RULERS.read_text())["rulers"]
     verts = np.asarray(verts)[:13380]
@@ -103,12 +104,66 @@ def tape_measure(verts, quads, breasts=None, chest=False):
     bands["underbust"] = (min(lo, hi - 0.04), hi, mode)
     bands["waist"] = (*sorted((mean_y["hips-circ"], mean_y["underbust-circ"])), "min")
     bands["bust"] = (bust_hi if chest else bust_lo, bust_hi, "max")
-    out = {"height": float(verts[:, 1].max() - verts[:, 1].min())}
+    out, at = {"height": float(verts[:, 1].max() - verts[:, 1].min())}, {}
     for name, (lo, hi, mode) in bands.items():
         ys = np.linspace(lo, hi, int(np.ceil((hi - lo) / 0.001 - 1e-9)) + 1)
         g = np.array([torso_hull_girth(mesh, y) for y in ys])
-        out[name] = float(np.nanmax(g) if mode == "max" else np.nanmin(g))
-    return out
+        i = int(np.nanargmax(g) if mode == "max" else np.nanargmin(g))
+        out[name], at[name] = float(g[i]), float(ys[i])
+    return (out, at) if planes else out
+
+
+def _inside(poly, p):
+    """Is the point ``p`` (2,) inside the closed polygon ``poly`` (k, 2)? (even-odd rule)"""
+    a, b = poly, np.roll(poly, -1, axis=0)
+    cross = (a[:, 1] > p[1]) != (b[:, 1] > p[1])
+    x = a[:, 0] + (p[1] - a[:, 1]) * (b[:, 0] - a[:, 0]) / np.where(cross, b[:, 1] - a[:, 1], 1.0)
+    return bool(np.count_nonzero(cross & (x > p[0])) % 2)
+
+
+def _dense(loop, step=0.0005):
+    """The closed polygon ``loop`` (k, 2) resampled to points at most ``step`` (m) apart along it."""
+    b = np.roll(loop, -1, axis=0)
+    n = np.maximum(np.ceil(np.linalg.norm(b - loop, axis=1) / step).astype(int), 1)
+    return np.concatenate([a + np.outer(np.arange(k) / k, e - a) for a, e, k in zip(loop, b, n)])
+
+
+def cloth_torso_tape(cloth: trimesh.Trimesh, body: trimesh.Trimesh, y: float) -> float:
+    """Tape (m) round a draped garment's torso loop at height ``y``, over the cloth.
+
+    The body's section there (trimesh): its torso loop (the largest across x = 0) and its other loops
+    (arms, hands). The cloth's section (trimesh): its loops round the torso's centre; of their points, those
+    nearer the torso loop than any other body loop (where the plane runs through a shirt's armholes its loop
+    goes round the sleeves too); the perimeter of their convex hull (scipy). NaN where the cloth does not go
+    round the torso.
+    """
+    def section(mesh):
+        path = mesh.section(plane_origin=[0, y, 0], plane_normal=[0, 1, 0])
+        return [] if path is None else [np.asarray(d)[:, [0, 2]] for d in path.discrete]
+
+    def area(p):
+        return 0.5 * abs(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1)))
+
+    body_loops = section(body)
+    holding = [i for i, p in enumerate(body_loops) if p[:, 0].min() <= 0.0 <= p[:, 0].max()]
+    if not holding:
+        return float("nan")
+    t = max(holding, key=lambda i: area(body_loops[i]))
+    torso = body_loops[t]
+    centre = torso[ConvexHull(torso).vertices].mean(axis=0)
+    near_torso = cKDTree(_dense(torso))
+    others = [p for i, p in enumerate(body_loops) if i != t]
+    near_other = cKDTree(np.concatenate([_dense(p) for p in others])) if others else None
+    kept = []
+    for loop in section(cloth):
+        if len(loop) < 3 or not _inside(loop, centre):
+            continue
+        if near_other is not None:
+            loop = loop[near_torso.query(loop)[0] <= near_other.query(loop)[0]]
+        kept.append(loop)
+    if not kept:
+        return float("nan")
+    return float(ConvexHull(np.concatenate(kept)).area)  # a 2-D hull's "area" is its perimeter
 
 
 def ruler_lengths(verts):

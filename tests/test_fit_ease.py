@@ -107,3 +107,30 @@ def test_separate_sleeve_loops_beside_a_tube_leave_its_girth():
     assert got[1] == pytest.approx(polygon_perimeter(loops[0]), abs=1e-5)
     # no loop round the part: no tape
     assert garment_girth(loops[1:], (0.0, 0.0), torso, arms) is None
+
+
+def test_the_girth_strain_is_the_stretch_along_the_tapes_line():
+    """A tube stretched by e round its girth and by 20 % along its length: the strain along the tape's line
+    is e (the cut steps are chords of the rings' triangles), its length as made the rest polygon's; a
+    tube stretched only along its length is not stretched round the region. Half the tube bunched (its
+    cloth shorter than made: a fold) and half stretched: the stretch is the taut half's, the garment's
+    length as made the whole line's."""
+    from vfit_engine.fit.table import _Plane, loop_strain
+
+    n = 40
+    rest, faces = tube(0.15, n, 9, 0.4, y0=-0.2)
+    tris = mesh_from_faces(rest, faces).triangles()
+    plane = _Plane((0.0, 0.013, 0.0), (0.0, 1.0, 0.0))
+    torso = circle(0.149, 400)
+    for e in (0.0, 0.05, -0.02):
+        pos = rest * np.array([1.0 + e, 1.2, 1.0 + e])
+        strain, ratio = loop_strain(tris, rest, pos, plane, torso)
+        assert strain == pytest.approx(e, abs=1e-9) and ratio == pytest.approx(1.0 + e, abs=1e-9)
+    # radially 1 + 7 % cos(angle): the front stretched by up to 7 %, the back as much bunched; the whole
+    # line as made as long as draped, the taut front's mean stretch 7 % 2 / pi = 4.5 %
+    scale = 1.0 + 0.07 * rest[:, [2]] / 0.15
+    strain, ratio = loop_strain(tris, rest, rest * np.hstack([scale, np.ones_like(scale), scale]), plane, torso)
+    assert strain == pytest.approx(0.07 * 2 / np.pi, abs=0.003) and ratio == pytest.approx(1.0, abs=0.003)
+    # with an arm beside it, the cloth nearer the arm is left out of both lengths (here none of it)
+    assert loop_strain(tris, rest, rest * 1.05, plane, torso, [circle(0.05, 100, (0.5, 0.0))])[0] == \
+        pytest.approx(0.05, abs=1e-9)

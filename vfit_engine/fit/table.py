@@ -16,11 +16,17 @@ round the region), ``garment_girth_cm`` (a tape round the draped garment in the 
 outside: the convex hull of the garment's own loop round the region, :func:`garment_girth` -- the torso
 loop of a shirt, not its sleeves or armholes, the sleeve round an arm, not the torso it joins; for an
 opening, its draped length), ``ease_cm`` (their difference: a garment stretched round the body has an
-ease of 2 pi times its gap to the skin, 1-2 cm for the drape's few millimetres), ``girth_strain`` (how far the cloth round the region
-is stretched: sum l / sum l0 - 1 over the garment's yarn edges that run round it within ``BAND`` of
-the plane, and no higher than where the body's arms join its torso: a man's chest is taken just under the
-armpits, and above them a shirt's edges run round its armholes and sleeve caps; for an opening, its
-draped length over its length as given), ``max_strain`` (the largest yarn strain there, edges >= 3 mm),
+ease of 2 pi times its gap to the skin, 1-2 cm for the drape's few millimetres), ``girth_strain`` (how
+far the cloth round the region is stretched along that tape's line: its draped length over its length as
+made, step by step across the triangles the plane cuts, over the steps under tension -- cloth bunched
+into a fold at a seam carries nothing round the body --, :func:`loop_strain`; where the line has no step,
+sum l / sum l0 - 1 over the garment's yarn edges that run round the region within ``BAND`` of the plane;
+for an opening, its draped length over its length as given), ``garment_made_cm`` (the garment's own
+girth there as made: ``garment_girth_cm`` times the line's whole length as made over its draped length;
+a size run's sizes differ in it as the grading says, where a tight size's draped girth is the body's),
+``max_strain`` (the largest yarn strain
+among those band edges, >= 3 mm long, no higher than where the body's arms join its torso: a man's chest
+is taken just under the armpits, and above them a shirt's edges run round its armholes and sleeve caps),
 ``pressure_kpa_max`` (:mod:`.maps`) and the verdict:
 
 * ``tight``  the cloth round the region is stretched by more than ``TIGHT_SHARE`` of the stretch the
@@ -122,6 +128,85 @@ def garment_girth(loops, centre, own, others=(), reach=np.inf):
     if hull is None or np.any(hull[2][:, :2] @ centre + hull[2][:, 2] > 0.0):
         return None
     return hull
+
+
+def _cut_loops(tris, heights):
+    """The closed loops in which the level ``heights == 0`` cuts a triangle mesh: per loop, the (k, 2) int
+    edges it crosses, in walk order (each two in a row share a triangle). ``heights`` (n,): every vertex's
+    signed height over the plane."""
+    up = heights > 0.0
+    e = np.stack([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]], axis=1)  # (T, 3, 2)
+    cut = up[e[..., 0]] != up[e[..., 1]]
+    two = cut.sum(axis=1) == 2
+    if not two.any():
+        return []
+    pairs = np.sort(e[two][cut[two]].reshape(-1, 2, 2), axis=2)  # (t, 2 edges, 2 verts)
+    keys, inv = np.unique(pairs.reshape(-1, 2), axis=0, return_inverse=True)
+    inv = inv.reshape(-1, 2)
+    nbr = [[] for _ in range(len(keys))]
+    for a, b in inv:
+        nbr[a].append(b)
+        nbr[b].append(a)
+    seen = np.zeros(len(keys), dtype=bool)
+    loops = []
+    for start in range(len(keys)):
+        if seen[start] or len(nbr[start]) != 2:
+            continue
+        walk, prev, cur = [start], -1, start
+        seen[start] = True
+        while True:
+            nxt = [n for n in nbr[cur] if n != prev]
+            if len(nbr[cur]) != 2 or not nxt or nxt[0] == start:
+                break
+            prev, cur = cur, nxt[0]
+            if seen[cur]:
+                break
+            seen[cur] = True
+            walk.append(cur)
+        if len(walk) >= 3 and len(nbr[cur]) == 2 and start in nbr[cur]:
+            loops.append(keys[walk])
+    return loops
+
+
+def loop_strain(tris, rest, pos, plane, own, others=(), reach=np.inf):
+    """How far the garment is stretched round a body part along its tape's line.
+
+    The garment's section in the plane (at ``pos``), its loops round the part and their points nearer the
+    part's own body loop than its other loops, as :func:`garment_girth` keeps them: each step between two
+    kept points in a row crosses one triangle, whose rest shape (``rest``) gives that step's length as
+    made.
+
+    Returns
+    -------
+    (stretch, ratio) or None
+        ``stretch``: draped length / rest length - 1 over the steps under tension (cloth cannot carry a
+        compression: a step shorter than made has buckled into a fold, bunched at a seam, and carries
+        nothing round the body); over all steps where none is. ``ratio``: draped / rest length over all
+        steps (the garment as made is the draped girth / ``ratio``). None where no step is kept.
+    """
+    q = pos @ plane.rot.T
+    centre = plane.centre_xz
+    draped, made = [], []
+    for loop in _cut_loops(tris, q[:, 1] - plane.height):
+        a, b = loop[:, 0], loop[:, 1]
+        t = ((q[a, 1] - plane.height) / (q[a, 1] - q[b, 1]))[:, None]
+        xz = q[a][:, [0, 2]] + t * (q[b][:, [0, 2]] - q[a][:, [0, 2]])
+        if abs(winding_number(xz, centre)) <= 0.5:
+            continue
+        keep = np.linalg.norm(xz - centre, axis=1) <= reach
+        if len(others):
+            keep &= _distance_to_loop(xz, own) <= np.min([_distance_to_loop(xz, o) for o in others], axis=0)
+        step = keep & np.roll(keep, -1)
+        r = rest[a] + t * (rest[b] - rest[a])
+        draped.append(np.linalg.norm(np.roll(xz, -1, axis=0) - xz, axis=1)[step])
+        made.append(np.linalg.norm(np.roll(r, -1, axis=0) - r, axis=1)[step])
+    if not made or np.sum([m.sum() for m in made]) <= 0.0:
+        return None
+    draped, made = np.concatenate(draped), np.concatenate(made)
+    taut = draped >= made
+    ratio = float(draped.sum() / made.sum())
+    stretch = float(draped[taut].sum() / made[taut].sum()) - 1.0 if taut.any() else ratio - 1.0
+    return stretch, ratio
 
 
 class _Plane:
@@ -252,9 +337,10 @@ class FitTable:
         length = np.linalg.norm(pos[edges[:, 1]] - pos[edges[:, 0]], axis=1)
         limit = float(setup.material.wearable_stretch)
         out = []
+        tris = mesh.triangles()
         for name, side, plane, reach, body_girth, own, others in self.regions:
-            tape = garment_girth(plane.section(sections, pos), plane.centre_xz, own, others,
-                                 max(reach, 3.0 * body_girth / (2 * np.pi)))
+            reach = max(reach, 3.0 * body_girth / (2 * np.pi))
+            tape = garment_girth(plane.section(sections, pos), plane.centre_xz, own, others, reach)
             if tape is None:
                 continue  # the garment does not go round this region
             hull, girth, eq = tape
@@ -264,9 +350,13 @@ class FitTable:
             strain = length[sel] / l0[sel] - 1.0
             long_ = l0[sel] >= 0.003
             verts = np.unique(edges[sel])
-            row = _row(name, side, body_girth, girth, float(length[sel].sum() / l0[sel].sum() - 1.0),
-                       float(strain[long_].max()) if long_.any() else 0.0,
-                       float(maps["pressure_kpa"][verts].max()), limit)
+            # the stretch along the tape's own line; the band's edges where that line has no step
+            hoop = loop_strain(tris, mesh.verts, pos, plane, own, others, reach)
+            ratio = hoop[1] if hoop is not None else float(length[sel].sum() / l0[sel].sum())
+            row = _row(name, side, body_girth, girth, hoop[0] if hoop is not None else ratio - 1.0,
+                       float(strain[long_].max()) if long_.any() else 0.0, float(maps["pressure_kpa"][verts].max()),
+                       limit)
+            row["garment_made_cm"] = round(100.0 * girth / ratio, 2)
             out.append(row)
         out += self._opening_rows(setup, pos, maps, limit)
         return out
