@@ -256,10 +256,10 @@ def _limb_planes(model, verts):
     return out
 
 
-def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND):
+def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND, across=False):
     """Mask of the yarn edges that run round the region: both ends within ``BAND`` of the plane (and at
     most ``above`` over it), the edge within 60 degrees of it, and its midpoint inside the garment's hull
-    (+ ``margin``)."""
+    (+ ``margin``); with ``across``, the edges the plane cuts instead, their midpoints inside the hull."""
     a, b = pos[edges[:, 0]], pos[edges[:, 1]]
     off_a, off_b = (a - plane.centre) @ plane.normal, (b - plane.centre) @ plane.normal
     d = b - a
@@ -267,6 +267,8 @@ def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND):
     along = np.abs(d @ plane.normal) <= ROUND_COS * np.maximum(length, 1e-12)
     mid = (0.5 * (a + b)) @ plane.rot.T
     inside = np.all(mid[:, [0, 2]] @ hull_eq[:, :2].T + hull_eq[:, 2] <= margin, axis=1)
+    if across:
+        return ((off_a > 0.0) != (off_b > 0.0)) & inside
     return ((np.abs(off_a) <= BAND) & (np.abs(off_b) <= BAND) & (off_a <= above) & (off_b <= above) & along
             & inside)
 
@@ -345,6 +347,8 @@ class FitTable:
                 continue  # the garment does not go round this region
             hull, girth, eq = tape
             sel = _round_edges(edges, pos, plane, eq, above=self._above.get(name, BAND)) & (l0 > 0)
+            if not sel.any():  # a coarse mesh whose rows miss the band: the edges the plane cuts
+                sel = _round_edges(edges, pos, plane, eq, across=True) & (l0 > 0)
             if not sel.any():
                 continue
             strain = length[sel] / l0[sel] - 1.0
