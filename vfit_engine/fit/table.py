@@ -281,9 +281,9 @@ class FitTable:
         model = self.measurer.model  # loaded by the Measurer when not given
         self.body_verts = np.ascontiguousarray(body.surface, dtype=np.float64)
         self.gender = body.gender
-        # no gender: a man's chest row keeps the bust band's plane, where his shirt's loop has not yet taken in
-        # its armholes, not his chest girth's under the armpits (docs/MEASUREMENTS.md)
-        m = self.measurer.measure(self.body_verts, names=TORSO, mass=False)
+        # a man's chest row in his chest girth's plane, under the armpits: the figure he gives (its garment
+        # girth is his shirt's torso loop, its armholes and sleeves left out; docs/MEASUREMENTS.md)
+        m = self.measurer.measure(self.body_verts, names=TORSO, mass=False, gender=self.gender)
         self.regions = []  # (region, side, plane, reach, body girth m, body part's loop, other body loops)
         self._above = {}  # torso region -> how far above its plane its cloth counts (m)
         self.chest_y = float(m.planes["bust"])
