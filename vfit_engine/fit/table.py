@@ -86,12 +86,13 @@ def _distance_to_loop(points, loop):
     return np.linalg.norm(points[:, None, :] - near, axis=2).min(axis=1)
 
 
-def garment_girth(loops, centre, own, others=(), reach=np.inf):
+def garment_girth(loops, centre, own, others=(), reach=np.inf, closed=None):
     """The tape round a garment's own loop round a body part, in the part's plane.
 
-    Of the garment's section loops that wind round ``centre`` (a sleeve beside the torso does not), the
-    points within ``reach`` of it that lie nearer the body part's own loop than any of the body's other
-    loops in the plane: where the plane cuts a shirt through its armholes, its loop runs out along the
+    Of the garment's section loops that wind round ``centre`` (a sleeve beside the torso does not) and its
+    open chains (a shirt whose sleeves are pieces of their own, cut through its armholes: a front and a back
+    running out along the sleeves), the points within ``reach`` of it that lie nearer the body part's own
+    loop than any of the body's other loops in the plane: where the plane cuts a shirt through its armholes, its loop runs out along the
     sleeves and round the arms, no part of the chest; where an upper arm's plane cuts the shirt's side,
     the torso's cloth is no part of the sleeve. The tape is the perimeter of their convex hull, over the
     outside of the cloth as the body's tape goes over its skin.
@@ -100,6 +101,8 @@ def garment_girth(loops, centre, own, others=(), reach=np.inf):
     ----------
     loops : list of (k, 2) float arrays, m
         The garment's section loops in the plane (its horizontal frame, as ``MeshSections.loops`` gives).
+    closed : list of bool or None
+        Per loop, whether it is closed (None: all are).
     centre : (2,) float, m
         A point inside the body part's loop.
     own : (m, 2) float, m
@@ -116,8 +119,8 @@ def garment_girth(loops, centre, own, others=(), reach=np.inf):
     """
     centre = np.asarray(centre, dtype=np.float64)
     kept = []
-    for loop in loops:
-        if len(loop) < 3 or abs(winding_number(loop, centre)) <= 0.5:
+    for loop, shut in zip(loops, closed if closed is not None else [True] * len(loops)):
+        if len(loop) < 2 or (shut and (len(loop) < 3 or abs(winding_number(loop, centre)) <= 0.5)):
             continue
         loop = loop[np.linalg.norm(loop - centre, axis=1) <= reach]
         if len(loop) and len(others):
@@ -131,9 +134,9 @@ def garment_girth(loops, centre, own, others=(), reach=np.inf):
 
 
 def _cut_loops(tris, heights):
-    """The closed loops in which the level ``heights == 0`` cuts a triangle mesh: per loop, the (k, 2) int
-    edges it crosses, in walk order (each two in a row share a triangle). ``heights`` (n,): every vertex's
-    signed height over the plane."""
+    """The loops and open chains in which the level ``heights == 0`` cuts a triangle mesh: per loop, the
+    (k, 2) int edges it crosses in walk order (each two in a row share a triangle) and whether it is closed.
+    ``heights`` (n,): every vertex's signed height over the plane."""
     up = heights > 0.0
     e = np.stack([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]], axis=1)  # (T, 3, 2)
     cut = up[e[..., 0]] != up[e[..., 1]]
@@ -142,37 +145,36 @@ def _cut_loops(tris, heights):
         return []
     pairs = np.sort(e[two][cut[two]].reshape(-1, 2, 2), axis=2)  # (t, 2 edges, 2 verts)
     keys, inv = np.unique(pairs.reshape(-1, 2), axis=0, return_inverse=True)
-    inv = inv.reshape(-1, 2)
     nbr = [[] for _ in range(len(keys))]
-    for a, b in inv:
+    for a, b in inv.reshape(-1, 2):
         nbr[a].append(b)
         nbr[b].append(a)
     seen = np.zeros(len(keys), dtype=bool)
-    loops = []
-    for start in range(len(keys)):
-        if seen[start] or len(nbr[start]) != 2:
+    out = []
+    # the chains first, from their ends (a mesh boundary), then the loops
+    for start in sorted(range(len(keys)), key=lambda k: len(nbr[k]) != 1):
+        if seen[start] or len(nbr[start]) > 2:
             continue
         walk, prev, cur = [start], -1, start
         seen[start] = True
         while True:
-            nxt = [n for n in nbr[cur] if n != prev]
-            if len(nbr[cur]) != 2 or not nxt or nxt[0] == start:
+            nxt = [n for n in nbr[cur] if n != prev and not seen[n]]
+            if len(nbr[cur]) > 2 or not nxt:
                 break
             prev, cur = cur, nxt[0]
-            if seen[cur]:
-                break
             seen[cur] = True
             walk.append(cur)
-        if len(walk) >= 3 and len(nbr[cur]) == 2 and start in nbr[cur]:
-            loops.append(keys[walk])
-    return loops
+        shut = len(nbr[start]) == 2 and start in nbr[cur] and len(walk) >= 3
+        if len(walk) >= 2:
+            out.append((keys[walk], shut))
+    return out
 
 
 def loop_strain(tris, rest, pos, plane, own, others=(), reach=np.inf):
     """How far the garment is stretched round a body part along its tape's line.
 
-    The garment's section in the plane (at ``pos``), its loops round the part and their points nearer the
-    part's own body loop than its other loops, as :func:`garment_girth` keeps them: each step between two
+    The garment's section in the plane (at ``pos``), its loops round the part, its open chains and their
+    points nearer the part's own body loop than its other loops, as :func:`garment_girth` keeps them: each step between two
     kept points in a row crosses one triangle, whose rest shape (``rest``) gives that step's length as
     made.
 
@@ -187,16 +189,18 @@ def loop_strain(tris, rest, pos, plane, own, others=(), reach=np.inf):
     q = pos @ plane.rot.T
     centre = plane.centre_xz
     draped, made = [], []
-    for loop in _cut_loops(tris, q[:, 1] - plane.height):
+    for loop, shut in _cut_loops(tris, q[:, 1] - plane.height):
         a, b = loop[:, 0], loop[:, 1]
         t = ((q[a, 1] - plane.height) / (q[a, 1] - q[b, 1]))[:, None]
         xz = q[a][:, [0, 2]] + t * (q[b][:, [0, 2]] - q[a][:, [0, 2]])
-        if abs(winding_number(xz, centre)) <= 0.5:
+        if shut and abs(winding_number(xz, centre)) <= 0.5:
             continue
         keep = np.linalg.norm(xz - centre, axis=1) <= reach
         if len(others):
             keep &= _distance_to_loop(xz, own) <= np.min([_distance_to_loop(xz, o) for o in others], axis=0)
         step = keep & np.roll(keep, -1)
+        if not shut:
+            step[-1] = False  # no step from a chain's end back to its start
         r = rest[a] + t * (rest[b] - rest[a])
         draped.append(np.linalg.norm(np.roll(xz, -1, axis=0) - xz, axis=1)[step])
         made.append(np.linalg.norm(np.roll(r, -1, axis=0) - r, axis=1)[step])
@@ -220,13 +224,14 @@ class _Plane:
         self.height, self.centre_xz = float(c[1]), c[[0, 2]]
 
     def section(self, sections, verts):
-        """The section loops (k, 2) of a mesh (``verts`` (n, 3) m) in the plane, in its horizontal frame."""
-        return sections.loops(np.ascontiguousarray(verts @ self.rot.T), self.height)
+        """The section loops (k, 2) of a mesh (``verts`` (n, 3) m) in the plane, in its horizontal frame, and
+        whether each is closed."""
+        return sections.loops(np.ascontiguousarray(verts @ self.rot.T), self.height, return_closed=True)
 
     def body_part(self, sections, verts, reach):
         """(own loop, its hull's perimeter m, the other loops) of the body's smallest section loop that
         goes round the centre with no point farther than ``reach`` (m) from it; None when none does."""
-        loops = [lp for lp in self.section(sections, verts) if len(lp) >= 3]
+        loops = [lp for lp in self.section(sections, verts)[0] if len(lp) >= 3]
         round_ = [(h[1], i) for i, lp in enumerate(loops)
                   if np.max(np.linalg.norm(lp - self.centre_xz, axis=1)) <= reach
                   and abs(winding_number(lp, self.centre_xz)) > 0.5 and (h := _hull(lp)) is not None]
@@ -342,7 +347,8 @@ class FitTable:
         tris = mesh.triangles()
         for name, side, plane, reach, body_girth, own, others in self.regions:
             reach = max(reach, 3.0 * body_girth / (2 * np.pi))
-            tape = garment_girth(plane.section(sections, pos), plane.centre_xz, own, others, reach)
+            loops, closed = plane.section(sections, pos)
+            tape = garment_girth(loops, plane.centre_xz, own, others, reach, closed)
             if tape is None:
                 continue  # the garment does not go round this region
             hull, girth, eq = tape
