@@ -132,19 +132,28 @@ def cloth_torso_tape(cloth: trimesh.Trimesh, body: trimesh.Trimesh, y: float) ->
     """Tape (m) round a draped garment's torso loop at height ``y``, over the cloth.
 
     The body's section there (trimesh): its torso loop (the largest across x = 0) and its other loops
-    (arms, hands). The cloth's section (trimesh): its loops round the torso's centre; of their points, those
+    (arms, hands). The cloth's section (trimesh): its loops round the torso's centre and its open chains (a
+    shirt whose sleeves are pieces of their own, cut through its armholes); of their points, those
     nearer the torso loop than any other body loop (where the plane runs through a shirt's armholes its loop
     goes round the sleeves too); the perimeter of their convex hull (scipy). NaN where the cloth does not go
     round the torso.
     """
     def section(mesh):
+        """(points (k, 2), closed) of every closed curve and open chain of the section."""
         path = mesh.section(plane_origin=[0, y, 0], plane_normal=[0, 1, 0])
-        return [] if path is None else [np.asarray(d)[:, [0, 2]] for d in path.discrete]
+        if path is None:
+            return []
+        out = [(np.asarray(d)[:, [0, 2]], True) for d in path.discrete]
+        in_paths = {i for p in path.paths for i in p}
+        for i, ent in enumerate(path.entities):  # the open chains (a sleeve that is its own piece)
+            if i not in in_paths:
+                out.append((np.asarray(path.vertices[ent.points])[:, [0, 2]], False))
+        return out
 
     def area(p):
         return 0.5 * abs(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1)))
 
-    body_loops = section(body)
+    body_loops = [p for p, _ in section(body)]
     holding = [i for i, p in enumerate(body_loops) if p[:, 0].min() <= 0.0 <= p[:, 0].max()]
     if not holding:
         return float("nan")
@@ -155,8 +164,8 @@ def cloth_torso_tape(cloth: trimesh.Trimesh, body: trimesh.Trimesh, y: float) ->
     others = [p for i, p in enumerate(body_loops) if i != t]
     near_other = cKDTree(np.concatenate([_dense(p) for p in others])) if others else None
     kept = []
-    for loop in section(cloth):
-        if len(loop) < 3 or not _inside(loop, centre):
+    for loop, closed in section(cloth):
+        if closed and (len(loop) < 3 or not _inside(loop, centre)):
             continue
         if near_other is not None:
             loop = loop[near_torso.query(loop)[0] <= near_other.query(loop)[0]]
