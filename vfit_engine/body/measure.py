@@ -20,9 +20,9 @@ Definitions (``definition=``), after ``shared/reference/MEASUREMENTS.md``:
       under the armpits, the last plane, in 1 mm steps up from the bust points'
       (as above, at most 15 cm), whose section shows the torso and both arms
       apart. A body of unknown gender (``gender=None``: a body file) gets the
-      bust. The fit table keeps the bust band's plane for a man's chest row
-      too: under the armpits a shirt's loop takes in its armholes
-      (docs/MEASUREMENTS.md).
+      bust. The fit table measures a man's chest row in this plane too (its
+      garment girth is the shirt's torso loop, the armholes and sleeves left
+      out: docs/MEASUREMENTS.md).
     * both: where the arms have not separated from the torso even at the bust
       points (heavy bodies with a low armpit) the band is the one plane just
       under the armpits, the first, in 1 mm steps down, where they are apart.
