@@ -245,3 +245,11 @@ def test_the_command_tries_five_sizes_in_processes_and_writes_the_json(full_run)
             assert set(r) >= {"region", "body_girth_cm", "garment_girth_cm", "ease_cm", "max_strain", "verdict",
                               "key"}
     assert [p.name for p in where.iterdir()] == ["fit.json"]  # written atomically: no temporary file left
+    # the garment's own chest, as made, grows with the size as the grading says (issue 33; the draped girth of
+    # the sizes stretched round him is his chest plus the cloth's gap, the same in each); his chest row is the
+    # chest he gave
+    chest = [next(r for r in s["fit"] if r["region"] == "chest") for s in res["sizes"]]
+    made = [r["garment_made_cm"] for r in chest]
+    assert np.all(np.diff(made) > 0), made
+    assert all(abs(r["body_girth_cm"] - 98.0) < 0.1 for r in chest)
+    assert "made cm" in full_run[0].stdout
