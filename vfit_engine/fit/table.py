@@ -92,17 +92,15 @@ def garment_girth(loops, centre, own, others=(), reach=np.inf, closed=None):
     Of the garment's section loops that wind round ``centre`` (a sleeve beside the torso does not) and its
     open chains (a shirt whose sleeves are pieces of their own, cut through its armholes: a front and a back
     running out along the sleeves), the points within ``reach`` of it that lie nearer the body part's own
-    loop than any of the body's other loops in the plane: where the plane cuts a shirt through its armholes, its loop runs out along the
-    sleeves and round the arms, no part of the chest; where an upper arm's plane cuts the shirt's side,
-    the torso's cloth is no part of the sleeve. The tape is the perimeter of their convex hull, over the
-    outside of the cloth as the body's tape goes over its skin.
+    loop than any of the body's other loops in the plane: where the plane cuts a shirt through its
+    armholes, its loop runs out along the sleeves and round the arms, no part of the chest; where an upper
+    arm's plane cuts the shirt's side, the torso's cloth is no part of the sleeve. The tape is the
+    perimeter of their convex hull, over the outside of the cloth as the body's tape goes over its skin.
 
     Parameters
     ----------
     loops : list of (k, 2) float arrays, m
         The garment's section loops in the plane (its horizontal frame, as ``MeshSections.loops`` gives).
-    closed : list of bool or None
-        Per loop, whether it is closed (None: all are).
     centre : (2,) float, m
         A point inside the body part's loop.
     own : (m, 2) float, m
@@ -110,6 +108,8 @@ def garment_girth(loops, centre, own, others=(), reach=np.inf, closed=None):
     others : list of (m_i, 2) float arrays, m
         The body's other loops in the plane (the arms beside the torso, the torso beside an arm).
     reach : float, m
+    closed : list of bool or None
+        Per loop, whether it is closed (None: all are).
 
     Returns
     -------
