@@ -198,8 +198,9 @@ def fmt_table(rows: list, header: list) -> str:
 
 
 def fit_table_lines(rows):
-    """The fit table (report.json's ``fit``) as people read it, one line per region: body and garment girth,
-    ease, the stretch of the cloth round it and the verdict (vfit_engine.fit.verdict's rule); * marks the
+    """The fit table (report.json's ``fit``) as people read it, one line per region: body and garment girth (draped,
+    round the body), the garment's own girth there as made (its size; a size run's grow as graded), ease, the
+    stretch of the cloth round it and the verdict (vfit_engine.fit.verdict's rule); * marks the
     regions that decide a size, "(estimated)" a girth the customer did not give, "-" a figure a region the
     garment does not go round has not."""
     from vfit_engine.fit.verdict import stretch
@@ -209,6 +210,7 @@ def fit_table_lines(rows):
 
     table = [[r["region"] + ("*" if r.get("key") else ""),
               f"{r['body_girth_cm']:.1f}" + (" (estimated)" if r.get("estimated") else ""),
-              num(r["garment_girth_cm"], ".1f"), num(r["ease_cm"], "+.1f"),
+              num(r["garment_girth_cm"], ".1f"), num(r.get("garment_made_cm"), ".1f"), num(r["ease_cm"], "+.1f"),
               num(None if stretch(r) is None else 100 * stretch(r), ".1f"), r["verdict"]] for r in rows]
-    return fmt_table(table, ["region", "body cm", "garment cm", "ease cm", "stretch %", "verdict"]).splitlines()
+    return fmt_table(table, ["region", "body cm", "garment cm", "made cm", "ease cm", "stretch %",
+                             "verdict"]).splitlines()

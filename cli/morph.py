@@ -29,7 +29,7 @@ def girth_option(name, help_text):
 @click.option("--height", type=Quantity("cm", 50, 300), default=None, help="Stature (top of head to sole), cm.")
 @click.option("--weight", type=Quantity("kg", 10, 500), default=None,
               help="Body mass, kg (met through body volume x 985 kg/m^3).")
-@girth_option("bust", "Bust girth (men: chest; --chest is the same option), cm.")
+@girth_option("bust", "Bust girth, cm (a man's: his chest girth, under the armpits; --chest is the same option).")
 @girth_option("underbust", "Underbust girth, cm.")
 @girth_option("waist", "Waist girth, cm.")
 @girth_option("hips", "Hip girth, cm.")

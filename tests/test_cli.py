@@ -285,6 +285,21 @@ def test_measure_makehuman_units(tmp_path, body_model):
     assert r.exit_code == 2 and "not a human body in any unit" in r.output, r.output
 
 
+def test_measure_takes_a_mans_chest_under_the_armpits(tmp_path, body_model):
+    """--gender male: the default man's chest under his armpits (98.82 cm, ISO 8559-1); without a gender the bust
+    band, at most 3 cm above his nipples (97.25)."""
+    from vfit_engine.body.bodyio import write_body
+
+    write_body(tmp_path / "m.obj", body_model, body_model.default_verts("male"))
+    a = run("measure", tmp_path / "m.obj", "--gender", "male", "--json", tmp_path / "a.json")
+    b = run("measure", tmp_path / "m.obj", "--json", tmp_path / "b.json")
+    assert a.exit_code == b.exit_code == 0, a.output
+    got = [json.loads((tmp_path / f"{k}.json").read_text()) for k in "ab"]
+    assert abs(got[0]["values"]["bust"] - 98.82) < 0.01 and abs(got[1]["values"]["bust"] - 97.25) < 0.01
+    assert got[0]["gender"] == "male" and got[1]["gender"] is None
+    assert got[0]["values"]["waist"] == got[1]["values"]["waist"]
+
+
 def test_measure_reads_a_body_with_a_byte_order_mark(tmp_path, body_model):
     """The same body written with a UTF-8 byte-order mark measures the same (no vertex lost)."""
     from vfit_engine.body.bodyio import write_body

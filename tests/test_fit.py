@@ -151,6 +151,35 @@ def test_fit_maps_in_the_ply_are_those_of_the_final_mesh(suit02):
     assert np.all(fit.point_data["pressure_kpa"][fit.point_data["contact"] == 0] == 0)
 
 
+def test_the_ease_column_is_an_independent_tape_round_the_shirts_torso_loop(suit02, body_model):
+    """The chest (his chest plane, under the armpits), waist and hips rows of the suit against tests/tape.py:
+    the planes re-derived from the definitions, final.obj and body.obj cut by trimesh, the cloth's loops round
+    the torso kept where nearer the torso than the arms (at the chest the plane runs through the shirt's
+    armholes), scipy's hull: the ease to 2 mm (issue 33 asks 5 mm; 0.05 mm or better on the four shared
+    garments)."""
+    import trimesh
+
+    from tape import cloth_torso_tape, tape_measure
+    from vfit_engine.io.mesh import read_mesh
+
+    out, _ = suit02
+    rows = {r["region"]: r for r in json.loads((out / "report.json").read_text())["fit"]}
+    body, cloth = read_mesh(out / "body.obj"), read_mesh(out / "final.obj")
+    bverts = body.verts[:13380]
+    girths, planes = tape_measure(bverts, body_model.body_quads, chest=True, planes=True)
+    body_mesh = trimesh.Trimesh(body.verts, body.triangles(), process=False)
+    cloth_mesh = trimesh.Trimesh(cloth.verts, cloth.triangles(), process=False)
+    for region, key in (("chest", "bust"), ("waist", "waist"), ("hips", "hips")):
+        tape = cloth_torso_tape(cloth_mesh, body_mesh, planes[key])
+        assert rows[region]["ease_cm"] == pytest.approx(100 * (tape - girths[key]), abs=0.2), region
+    # the chest's loop there runs round both sleeves (the table before issue 33 took in their roots: at the bust
+    # band's plane it read 7.4 cm of ease on this shirt where the tape reads 4.8)
+    y = planes["bust"]
+    path = cloth_mesh.section(plane_origin=[0, y, 0], plane_normal=[0, 1, 0])
+    widest = max(np.ptp(np.asarray(d)[:, 0]) for d in path.discrete)
+    assert widest > 0.5 and rows["chest"]["garment_girth_cm"] < 100 * (girths["bust"] + 0.08)
+
+
 @needs_shared
 @pytest.mark.slow
 def test_sleeve_hems_of_the_female_suit_are_tight(tmp_path):
@@ -204,7 +233,7 @@ def test_preview_garment_pixels_take_the_maps_colour(name, value, other):
 
 
 def test_a_chest_at_the_armpits_counts_only_the_cloth_below_them(body_model):
-    """A man whose chest is taken just under his armpits (180 cm, chest 106: the arms join the torso 24 mm
+    """A man whose chest is taken just under his armpits (180 cm, chest 106: the arms join the torso 26 mm
     above his bust points): his chest row counts the cloth from 2 cm below its plane up to where the arms
     join, not the armhole edges above; his waist row the full band. A ring of edges stepping up through the
     plane: those above the armpit level are left out."""

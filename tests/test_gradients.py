@@ -32,6 +32,24 @@ def test_tape_girth_gradient_moves_with_its_band(measurer, body, name):
     assert _directional(idx, grad, d) == pytest.approx(fd, rel=1e-4, abs=1e-9)
 
 
+def test_mans_chest_gradient_follows_the_bust_points(measurer, body_model):
+    """A man's chest (under the armpits: a whole number of millimetres above his bust points): d girth along
+    seeded random directions, the plane following the bust points, against central differences."""
+    male = body_model.default_verts("male")[:13380].copy()
+    base = measurer.measure(male, "iso", gender="male")
+    frac = {"bust": base.fractions["bust"]}
+    idx, grad = measurer.gradient(male, "bust", "iso", frac["bust"], gender="male")
+    rng = np.random.default_rng(12)
+    for _ in range(2):
+        d = rng.normal(size=male.shape) * 1e-3
+        eps = 1e-3
+        plus, minus = (measurer.measure(male + s * eps * d, "iso", planes=frac, names=("bust",), gender="male")
+                       for s in (1, -1))
+        assert plus.planes["bust"] != minus.planes["bust"]  # the plane moved with the body
+        fd = (plus.values["bust"] - minus.values["bust"]) / (2 * eps)
+        assert _directional(idx, grad, d) == pytest.approx(fd, rel=1e-4, abs=1e-9)
+
+
 def test_ruler_and_volume_gradients(body_model, body):
     rng = np.random.default_rng(8)
     d = rng.normal(size=body.shape) * 1e-3

@@ -44,7 +44,7 @@ def test_fifty_random_feasible_target_sets(morpher, measurer):
         s = rng.uniform(-0.6, 0.6, n_ch)
         s[len(GIRTHS):] *= 0.5
         mac = morpher.macro(g, rng.uniform(0.3, 0.7), rng.uniform(-0.4, 0.4))
-        meas = measurer.measure(morpher._body(mac, s), "iso")
+        meas = measurer.measure(morpher._body(mac, s), "iso", gender=gender)  # a man's bust: his chest
         k = rng.integers(1, 6)
         names = list(rng.choice(["height", "bust", "underbust", "waist", "hips", "neck", "thigh", "calf"], k,
                                 replace=False))

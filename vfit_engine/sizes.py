@@ -136,7 +136,7 @@ def garment_size(reference, gender, measurer=None):
     """
     measurer = measurer or Measurer()
     key = size_gender(gender)
-    bust = 100.0 * measurer.measure(reference.verts, names=("bust",), mass=False).values["bust"]
+    bust = 100.0 * measurer.measure(reference.verts, names=("bust",), mass=False, gender=key).values["bust"]
     name, centre = min(((s[0], s[1]) for s in SIZES[key]), key=lambda s: abs(s[1] - bust))
     return dict(size=name, measure="chest" if key == "male" else "bust", body_cm=round(bust, 2), centre_cm=centre)
 
@@ -364,7 +364,7 @@ def try_sizes(garment_path, customer, sizes=None, workers=None, progress=None, u
         else:
             results = (try_size(dict(job, model=model)) for job in jobs)
         measurer = Measurer(model)
-        meas = measurer.measure(body.verts, names=("height", "bust", "waist", "hips"), mass=False)
+        meas = measurer.measure(body.verts, names=("height", "bust", "waist", "hips"), mass=False, gender=body.gender)
         own = garment_size(default_body(model, gender), gender, measurer)
         say(f"the garment as given is size {own['size']} (made on a {own['measure']} of {own['body_cm']:.1f} cm; "
             f"centre {own['centre_cm']} cm); trying {', '.join(names)} on {n_workers} "

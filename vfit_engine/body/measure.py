@@ -4,24 +4,33 @@ Definitions (``definition=``), after ``shared/reference/MEASUREMENTS.md``:
 
 ``iso`` (default) - tailoring tape measures, ISO 8559-1 style
     * height: stature, max Y - min Y of the 13,380 body vertices.
-    * bust (ISO 8559-1 / EN 13402-1 "bust girth", for men "chest girth"):
-      the largest torso tape girth over planes from the bust points up to 3 cm
-      above them, at most just under the armpits. A bust point is the most
-      anterior point of the breast: on each side the most anterior vertex of
-      those the rig's breast bone skins most; the band starts at their mean
-      height (10 um below it, off their vertex row). It ends 3 cm higher or,
-      lower, at the last plane, in 1 mm steps up from there, whose section still
-      shows the torso and both arms apart (one loop spanning x = 0 and another
-      wholly on each side of it). A woman's bust is then the girth at (or within
-      millimetres of) her bust points, a man's chest the girth across his chest
-      (ISO's under the armpits would take in a shirt's armholes in the fit
-      table's garment loop: docs/MEASUREMENTS.md). Where the arms have not
-      separated from the torso even at the bust points (heavy bodies with a low
-      armpit) the band is the one plane just under the armpits.
+    * bust (ISO 8559-1 / EN 13402-1 "bust girth"): the largest torso tape
+      girth over planes from the bust points up to 3 cm above them, at most just
+      under the armpits. A bust point is the most anterior point of the breast:
+      on each side the most anterior vertex of those the rig's breast bone skins
+      most; the band starts at their mean height (10 um below it, off their
+      vertex row). It ends 3 cm higher or, lower, at the last plane, in 1 mm
+      steps up from there, whose section still shows the torso and both arms
+      apart (one loop spanning x = 0 and another wholly on each side of it). A
+      woman's bust is then the girth at (or within millimetres of) her bust
+      points.
+    * a man's chest (``gender`` male, or a blend >= 0.5; ISO 8559-1 / EN
+      13402-1 "chest girth": the tape under the armpits, across the shoulder
+      blades), reported as ``bust``: the torso tape girth in the one plane just
+      under the armpits, the last plane, in 1 mm steps up from the bust points'
+      (as above, at most 15 cm), whose section shows the torso and both arms
+      apart. A body of unknown gender (``gender=None``: a body file) gets the
+      bust. The fit table measures a man's chest row in this plane too (its
+      garment girth is the shirt's torso loop, the armholes and sleeves left
+      out: docs/MEASUREMENTS.md).
+    * both: where the arms have not separated from the torso even at the bust
+      points (heavy bodies with a low armpit) the band is the one plane just
+      under the armpits, the first, in 1 mm steps down, where they are apart.
     * underbust (ISO 8559-1 "underbust girth", just below the breasts): the
       smallest torso tape girth within +-2 cm of the mean height of the
       underbust ruler's vertices, the band kept at least 1 cm below the bust
-      plane (and 4 cm long), so a low bust can never put it above the bust.
+      band's bottom (and 4 cm long), so a low bust can never put it above the
+      bust; a man's chest, higher, leaves it where a woman's bust would.
     * waist: the smallest torso tape girth between the mean heights of the hips
       ruler and of the underbust ruler (the natural, narrowest waist).
     * hips: the largest torso tape girth within +-4 cm of the mean height of the
@@ -52,7 +61,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vfit_engine.body.gradients import girth_gradient_dy, ruler_gradient, stature_gradient
-from vfit_engine.body.model import N_BODY, BodyModel
+from vfit_engine.body.model import N_BODY, BodyModel, gender_value
 from vfit_engine.kernels.volume import enclosed_volume as volume
 from vfit_engine.kernels.volume import volume_gradient
 from vfit_engine.section import MeshSections
@@ -75,12 +84,13 @@ _BANDS = {
 UNDERBUST_GAP, UNDERBUST_MIN_BAND = 0.01, 0.04
 #: the bust band starts this far below the bust points' mean height (m), off their vertex row
 BUST_PLANE_OFFSET = 1e-5
-#: and reaches at most this far above them (m): a man's chest is taken across his chest, not up under the
-#: armpits where a shirt's sleeves join it (module docstring)
+#: and reaches at most this far above them (m): a woman's bust is taken across her bust (module docstring)
 BUST_BAND_ABOVE = 0.03
-#: the armpit search: how far below the bust points it looks for the arms apart, and its step (m)
+#: the armpit search: how far below (a man's chest: above) the bust points it looks for the arms apart, and its
+#: step (m)
 ARMPIT_SEARCH, ARMPIT_STEP = 0.15, 0.001
 _BAND_STEPS = np.arange(round(BUST_BAND_ABOVE / ARMPIT_STEP) + 1) * ARMPIT_STEP  # 0, 1 .. 30 mm
+_CHEST_STEPS = np.arange(round(ARMPIT_SEARCH / ARMPIT_STEP) + 1) * ARMPIT_STEP  # 0, 1 .. 150 mm
 _ARMPIT_STEPS = np.arange(1, round(ARMPIT_SEARCH / ARMPIT_STEP) + 1) * ARMPIT_STEP  # 1 .. 150 mm
 PLANE_STEP = 0.001  # m
 _PLANE_GIRTHS = ("bust", "underbust", "waist", "hips")
@@ -106,11 +116,17 @@ class Measurement:
         return {k: round(v / LENGTH_UNITS["cm"], 3) for k, v in self.values.items()}
 
 
-def band_limits(verts: np.ndarray, rulers: dict, bust: tuple = (np.inf, np.inf)) -> dict:
+def takes_chest(gender) -> bool:
+    """True where a body's ``bust`` is a man's chest girth, under the armpits: ``gender`` "male" or a blend
+    >= 0.5. None (a body file whose gender is not known) and women take the bust (module docstring)."""
+    return gender is not None and gender_value(gender) >= 0.5
+
+
+def band_limits(verts: np.ndarray, rulers: dict, bust: tuple = (np.inf, np.inf), chest: bool = False) -> dict:
     """(lo, hi, 'max'|'min') of every plane-based girth of a body, in metres.
 
     ``bust`` : (lo, hi) of the bust band (:meth:`Measurer.bust_band`); the underbust band is kept
-    below its bottom (see the module docstring).
+    below its bottom (see the module docstring). ``chest``: a man's chest, the one plane at the band's top.
     """
     mean_y = {k: float(verts[rulers[k]["vertex_indices"], 1].mean()) for k in ("underbust-circ", "hips-circ")}
     out = {name: (mean_y[r] - below, mean_y[r] + above, mode) for name, (r, below, above, mode) in _BANDS.items()}
@@ -118,6 +134,8 @@ def band_limits(verts: np.ndarray, rulers: dict, bust: tuple = (np.inf, np.inf))
     lo, hi, mode = out["underbust"]
     hi = min(hi, bust[0] - UNDERBUST_GAP)
     out["underbust"] = (min(lo, hi - UNDERBUST_MIN_BAND), hi, mode)
+    if chest:
+        out["bust"] = (bust[1], bust[1], "max")
     lo, hi = sorted((mean_y["hips-circ"], mean_y["underbust-circ"]))
     out["waist"] = (lo, hi, "min")
     return out
@@ -181,36 +199,40 @@ class Measurer:
         self.tris = self.model.body_tris
         self.sections = MeshSections(self.tris, N_BODY)
         self.breasts = breast_regions(self.model)
-        self._bust_memo = None  # (verts, held points, bust_band(verts)) of the last body
+        self._bust_memo = None  # (verts, held points, chest, bust_band(verts)) of the last body
         #: bust points (two vertex indices) to use instead of the most anterior breast vertices: the morph's
         #: inner solve holds them, as it holds the planes (the argmax jumps between vertex rows of a flat
         #: chest, moving a lean man's chest band by 13 mm under a change of 1e-7 in one channel)
         self.held_points = None
 
-    def bust_band(self, verts) -> tuple[float, float, np.ndarray]:
-        """(lo, hi, points): the bust band (m) and the vertices its bottom follows (the two bust points;
-        none where the band is held under the armpits). See the module docstring.
+    def bust_band(self, verts, gender=None) -> tuple[float, float, np.ndarray]:
+        """(lo, hi, points): the bust band (m) and the vertices its planes follow (the two bust points;
+        none where the band is held under the armpits). See the module docstring. For a man's chest
+        (:func:`takes_chest` of ``gender``) the band runs from the bust points up to just under the
+        armpits, and the chest is taken at its top (:func:`band_limits`).
 
         The last body's band is kept: the morph measures and differentiates one body several times (a
         measurement, then one gradient per girth)."""
         verts = np.asarray(verts)[:N_BODY]
-        memo, held = self._bust_memo, self.held_points
-        if memo is not None and np.array_equal(memo[0], verts) and np.array_equal(memo[1], held):
-            return memo[2]
-        band = self._bust_band(verts)
-        self._bust_memo = (verts.copy(), None if held is None else held.copy(), band)
+        memo, held, chest = self._bust_memo, self.held_points, takes_chest(gender)
+        if (memo is not None and np.array_equal(memo[0], verts) and np.array_equal(memo[1], held)
+                and memo[2] == chest):
+            return memo[3]
+        band = self._bust_band(verts, chest)
+        self._bust_memo = (verts.copy(), None if held is None else held.copy(), chest, band)
         return band
 
-    def _bust_band(self, verts):
+    def _bust_band(self, verts, chest):
         verts = np.ascontiguousarray(verts, dtype=np.float64)
         points = self.bust_points(verts) if self.held_points is None else self.held_points
         y = float(verts[points, 1].mean()) - BUST_PLANE_OFFSET
         # every plane of the 1 mm grid is looked at (one kernel call), as the definition says: a coarse
         # walk could step over an arm touching the chest for a few millimetres
-        up = self.sections.apart(verts, y + _BAND_STEPS)
+        steps = _CHEST_STEPS if chest else _BAND_STEPS
+        up = self.sections.apart(verts, y + steps)
         if up[0]:
             n = int(np.argmin(up)) if not up.all() else up.size  # the first plane where they touch
-            return y, y + _BAND_STEPS[n - 1], points
+            return y, y + steps[n - 1], points
         down = self.sections.apart(verts, y - _ARMPIT_STEPS)  # the arms join the torso here: go down
         if down.any():
             y -= _ARMPIT_STEPS[int(np.argmax(down))]
@@ -248,13 +270,13 @@ class Measurer:
         order = np.argsort(-f[local])[:3]
         return float(g[i]), float(ys[i]), ys[local[order]]
 
-    def gradient(self, verts, name, definition="iso", fraction=None):
+    def gradient(self, verts, name, definition="iso", fraction=None, gender=None):
         """Sparse gradient of one measurement w.r.t. the vertices: (idx (k,), d/dv (k, 3)).
 
         A tape girth is differentiated at the plane a ``fraction`` of the way up
         its band, including the band's own motion with its ruler vertices
         (``dg/dy`` by a central difference). The ``spline`` girth has no
-        analytic gradient here (returns None).
+        analytic gradient here (returns None). ``gender``: as :meth:`measure`.
         """
         verts = np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64)
         if name == "height":
@@ -263,8 +285,8 @@ class Measurer:
             return ruler_gradient(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
         if definition == "spline":
             return None
-        b_lo, b_hi, points = self.bust_band(verts)
-        lo, hi, _ = band_limits(verts, self.rulers, (b_lo, b_hi))[name]
+        b_lo, b_hi, points = self.bust_band(verts, gender)
+        lo, hi, _ = band_limits(verts, self.rulers, (b_lo, b_hi), takes_chest(gender))[name]
         y = lo + fraction * (hi - lo)
         anchors = () if name == "bust" else _band_anchors(name, fraction)
         eps = 1e-6  # local: g(y) has kinks where the plane passes vertex rows, often within 10 um
@@ -297,7 +319,7 @@ class Measurer:
         volume_gradient(np.ascontiguousarray(np.asarray(verts)[:N_BODY], dtype=np.float64), self.tris, grad)
         return grad * DENSITY
 
-    def measure(self, verts, definition="iso", planes=None, names=NAMES, mass=True) -> Measurement:
+    def measure(self, verts, definition="iso", planes=None, names=NAMES, mass=True, gender=None) -> Measurement:
         """Measure a body.
 
         Parameters
@@ -315,6 +337,9 @@ class Measurer:
             Which of ``NAMES`` to measure (``makehuman`` always adds all rulers).
         mass : bool
             Also compute ``mass_kg`` (NaN otherwise).
+        gender : 'female', 'male', 0..1 or None
+            The body's: a man's ``bust`` is his chest girth, under the armpits (:func:`takes_chest`); None
+            (unknown) takes the bust.
         """
         if definition not in DEFINITIONS:
             raise ValueError(f"unknown definition {definition!r}; choose from {', '.join(DEFINITIONS)}")
@@ -325,7 +350,7 @@ class Measurer:
         held = [n for n in names if planes is not None and n in planes and n in _PLANE_GIRTHS
                 and definition != "makehuman"]
         if held:
-            bands = band_limits(verts, self.rulers, self.bust_band(verts)[:2])
+            bands = band_limits(verts, self.rulers, self.bust_band(verts, gender)[:2], takes_chest(gender))
             ts = [np.atleast_1d(planes[n]) for n in held]
             ys = np.concatenate([bands[n][0] + t * (bands[n][1] - bands[n][0]) for n, t in zip(held, ts)])
             g = self.sections.girths(verts, ys, method=self._girth_method(definition))
@@ -337,7 +362,8 @@ class Measurer:
                 values[name] = ruler_length(verts, self.rulers[RULER_OF[name]]["vertex_indices"])
             else:
                 if bands is None:
-                    bands = band_limits(verts, self.rulers, self.bust_band(verts)[:2])
+                    bands = band_limits(verts, self.rulers, self.bust_band(verts, gender)[:2],
+                                        takes_chest(gender))
                 lo, hi, mode = bands[name]
                 span = (hi - lo) or 1.0  # a one-plane band (the bust held under the armpits)
                 if planes is not None and name in planes:

@@ -33,7 +33,8 @@ the band; every near-extremal plane seen so far, so the solve cannot cycle
 between valleys) and the outer loop re-searches the bands until the full
 measurement meets every target (a solve ending a few millimetres short goes
 again with a residual per watched plane: ``morph_planes.py``). The bust is
-taken at the bust points' plane, which moves with them. The inner solve is a
+taken at the bust points' plane (a man's chest a whole number of millimetres
+above it, just under his armpits), which moves with them. The inner solve is a
 trust-region Gauss-Newton (``gauss_newton.py``) with an exact Jacobian for the
 channels: the body is linear in its channel weights, so ``dg/dx_j = grad_v g .
 D_j`` with the gradients of ``gradients.py``; the two macro sliders by forward
@@ -134,7 +135,8 @@ class Morpher(ReachSearch):
         key = (float(gender), definition)
         if key not in self._start_cache:
             zero = np.zeros(len(self._channel_names))
-            self._start_cache[key] = self.measurer.measure(self._body(self.macro(gender, 0.5, 0.0), zero), definition)
+            self._start_cache[key] = self.measurer.measure(self._body(self.macro(gender, 0.5, 0.0), zero), definition,
+                                                           gender=gender)
         return copy.deepcopy(self._start_cache[key])
 
     def population(self, gender: float, definition: str = "iso") -> PopulationModel:
@@ -284,7 +286,7 @@ class Morpher(ReachSearch):
             p, slack = q[:nx], (q[nx:] if q.size > nx else None)
             v = self._body_split(self.macro(g, p[-2], p[-1]), p[:n_ch], p[n_ch:2 * n_ch])
             m.held_points = None if planes is None else held[0]
-            meas = m.measure(v, definition, planes=planes, names=keys, mass=True)
+            meas = m.measure(v, definition, planes=planes, names=keys, mass=True, gender=g)
             if planes is None:
                 held[0] = m.bust_points(v)
             r, plane_rows, grads, signs = rows.rows(meas, planes, slack)
@@ -401,7 +403,7 @@ class Morpher(ReachSearch):
         # found in 0.4-0.5 s instead of 1.1-2.2 s (a failure of `vfit morph --definition spline` took 2.7-3.5 s)
         jdef = "iso" if definition == "spline" else definition
         for row, k, fraction in grads:
-            idx, grad = self.measurer.gradient(v, k, jdef, fraction)
+            idx, grad = self.measurer.gradient(v, k, jdef, fraction, gender=macro.gender)
             scale = wres[keys.index(k)] / MM
             row = row if row < len(keys) else row - len(keys) + base
             J[row, :n_ch] = np.einsum("jkc,kc->j", ch.incr3[:, idx], grad) * scale

@@ -13,13 +13,20 @@ necklines). A region is measured in one plane:
 
 Figures of a row: ``body_girth_cm`` (a tape round the body in the plane: the convex hull of the loop
 round the region), ``garment_girth_cm`` (a tape round the draped garment in the same plane, over its
-outside: the hull of the outermost garment loop that goes round the region; for an opening, its
-draped length), ``ease_cm`` (their difference), ``girth_strain`` (how far the cloth round the region
-is stretched: sum l / sum l0 - 1 over the garment's yarn edges that run round it within ``BAND`` of
-the plane (twice that where coarse cloth has no ring of edges so near: a suit's waist), and no higher
-than where the body's arms join its torso: a man's chest is taken just under the armpits, and above them
-a shirt's edges run round its armholes and sleeve caps; for an opening, its draped length over its length
-as given), ``max_strain`` (the largest yarn strain there, edges >= 3 mm),
+outside: the convex hull of the garment's own loop round the region, :func:`garment_girth` -- the torso
+loop of a shirt, not its sleeves or armholes, the sleeve round an arm, not the torso it joins; for an
+opening, its draped length), ``ease_cm`` (their difference: a garment stretched round the body has an
+ease of 2 pi times its gap to the skin, 1-2 cm for the drape's few millimetres), ``girth_strain`` (how
+far the cloth round the region is stretched along that tape's line: its draped length over its length as
+made, step by step across the triangles the plane cuts, over the steps under tension -- cloth bunched
+into a fold at a seam carries nothing round the body --, :func:`loop_strain`; where the line has no step,
+sum l / sum l0 - 1 over the garment's yarn edges that run round the region within ``BAND`` of the plane;
+for an opening, its draped length over its length as given), ``garment_made_cm`` (the garment's own
+girth there as made: ``garment_girth_cm`` times the line's whole length as made over its draped length;
+a size run's sizes differ in it as the grading says, where a tight size's draped girth is the body's),
+``max_strain`` (the largest yarn strain
+among those band edges, >= 3 mm long, no higher than where the body's arms join its torso: a man's chest
+is taken just under the armpits, and above them a shirt's edges run round its armholes and sleeve caps),
 ``pressure_kpa_max`` (:mod:`.maps`), ``estimated`` (the customer did not give this girth: the body model
 estimated it from the others) and ``verdict``: too tight to wear, tight, fitted, loose or too loose, by the
 one rule of :mod:`.verdict` (which every other output reads).
@@ -42,8 +49,6 @@ from vfit_engine.section import MeshSections, rotation_to_y
 
 #: Half-width of the band round a region's plane whose edges give its strain, m.
 BAND = 0.02
-#: A garment's loop round the torso counts within the torso's half width plus this, m (not its sleeves).
-TORSO_MARGIN = 0.03
 #: An edge runs round the region when its direction is within 60 degrees of the plane.
 ROUND_COS = 0.5
 #: Torso regions (vfit's tape girths) and limb regions (MakeHuman rulers), in table order.
@@ -66,6 +71,142 @@ def _hull(points_xz):
     return points_xz[h.vertices], float(h.area), h.equations
 
 
+def _distance_to_loop(points, loop):
+    """(k,) distance (m) of each of ``points`` (k, 2) from the closed polygon ``loop`` (m, 2)."""
+    a = loop
+    d = np.roll(loop, -1, axis=0) - a
+    t = np.einsum("kmj,mj->km", points[:, None, :] - a, d) / np.maximum(np.einsum("mj,mj->m", d, d), 1e-18)
+    near = a + np.clip(t, 0.0, 1.0)[..., None] * d
+    return np.linalg.norm(points[:, None, :] - near, axis=2).min(axis=1)
+
+
+def garment_girth(loops, centre, own, others=(), reach=np.inf, closed=None):
+    """The tape round a garment's own loop round a body part, in the part's plane.
+
+    Of the garment's section loops that wind round ``centre`` (a sleeve beside the torso does not) and its
+    open chains (a shirt whose sleeves are pieces of their own, cut through its armholes: a front and a back
+    running out along the sleeves), the points within ``reach`` of it that lie nearer the body part's own
+    loop than any of the body's other loops in the plane: where the plane cuts a shirt through its
+    armholes, its loop runs out along the sleeves and round the arms, no part of the chest; where an upper
+    arm's plane cuts the shirt's side, the torso's cloth is no part of the sleeve. The tape is the
+    perimeter of their convex hull, over the outside of the cloth as the body's tape goes over its skin.
+
+    Parameters
+    ----------
+    loops : list of (k, 2) float arrays, m
+        The garment's section loops in the plane (its horizontal frame, as ``MeshSections.loops`` gives).
+    centre : (2,) float, m
+        A point inside the body part's loop.
+    own : (m, 2) float, m
+        The body part's own loop in the plane (the torso, an arm, a thigh, the neck).
+    others : list of (m_i, 2) float arrays, m
+        The body's other loops in the plane (the arms beside the torso, the torso beside an arm).
+    reach : float, m
+    closed : list of bool or None
+        Per loop, whether it is closed (None: all are).
+
+    Returns
+    -------
+    (points (h, 2), perimeter m, equations (h, 3)) or None
+        The convex hull; None when no garment loop goes round the part or what is left of them does not
+        enclose ``centre``.
+    """
+    centre = np.asarray(centre, dtype=np.float64)
+    kept = []
+    for loop, shut in zip(loops, closed if closed is not None else [True] * len(loops)):
+        if len(loop) < 2 or (shut and (len(loop) < 3 or abs(winding_number(loop, centre)) <= 0.5)):
+            continue
+        loop = loop[np.linalg.norm(loop - centre, axis=1) <= reach]
+        if len(loop) and len(others):
+            mine = _distance_to_loop(loop, own)
+            loop = loop[mine <= np.min([_distance_to_loop(loop, o) for o in others], axis=0)]
+        kept.append(loop)
+    hull = _hull(np.concatenate(kept)) if kept else None
+    if hull is None or np.any(hull[2][:, :2] @ centre + hull[2][:, 2] > 0.0):
+        return None
+    return hull
+
+
+def _cut_loops(tris, heights):
+    """The loops and open chains in which the level ``heights == 0`` cuts a triangle mesh: per loop, the
+    (k, 2) int edges it crosses in walk order (each two in a row share a triangle) and whether it is closed.
+    ``heights`` (n,): every vertex's signed height over the plane."""
+    up = heights > 0.0
+    e = np.stack([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]], axis=1)  # (T, 3, 2)
+    cut = up[e[..., 0]] != up[e[..., 1]]
+    two = cut.sum(axis=1) == 2
+    if not two.any():
+        return []
+    pairs = np.sort(e[two][cut[two]].reshape(-1, 2, 2), axis=2)  # (t, 2 edges, 2 verts)
+    keys, inv = np.unique(pairs.reshape(-1, 2), axis=0, return_inverse=True)
+    nbr = [[] for _ in range(len(keys))]
+    for a, b in inv.reshape(-1, 2):
+        nbr[a].append(b)
+        nbr[b].append(a)
+    seen = np.zeros(len(keys), dtype=bool)
+    out = []
+    # the chains first, from their ends (a mesh boundary), then the loops
+    for start in sorted(range(len(keys)), key=lambda k: len(nbr[k]) != 1):
+        if seen[start] or len(nbr[start]) > 2:
+            continue
+        walk, prev, cur = [start], -1, start
+        seen[start] = True
+        while True:
+            nxt = [n for n in nbr[cur] if n != prev and not seen[n]]
+            if len(nbr[cur]) > 2 or not nxt:
+                break
+            prev, cur = cur, nxt[0]
+            seen[cur] = True
+            walk.append(cur)
+        shut = len(nbr[start]) == 2 and start in nbr[cur] and len(walk) >= 3
+        if len(walk) >= 2:
+            out.append((keys[walk], shut))
+    return out
+
+
+def loop_strain(tris, rest, pos, plane, own, others=(), reach=np.inf):
+    """How far the garment is stretched round a body part along its tape's line.
+
+    The garment's section in the plane (at ``pos``), its loops round the part, its open chains and their
+    points nearer the part's own body loop than its other loops, as :func:`garment_girth` keeps them: each step between two
+    kept points in a row crosses one triangle, whose rest shape (``rest``) gives that step's length as
+    made.
+
+    Returns
+    -------
+    (stretch, ratio) or None
+        ``stretch``: draped length / rest length - 1 over the steps under tension (cloth cannot carry a
+        compression: a step shorter than made has buckled into a fold, bunched at a seam, and carries
+        nothing round the body); over all steps where none is. ``ratio``: draped / rest length over all
+        steps (the garment as made is the draped girth / ``ratio``). None where no step is kept.
+    """
+    q = pos @ plane.rot.T
+    centre = plane.centre_xz
+    draped, made = [], []
+    for loop, shut in _cut_loops(tris, q[:, 1] - plane.height):
+        a, b = loop[:, 0], loop[:, 1]
+        t = ((q[a, 1] - plane.height) / (q[a, 1] - q[b, 1]))[:, None]
+        xz = q[a][:, [0, 2]] + t * (q[b][:, [0, 2]] - q[a][:, [0, 2]])
+        if shut and abs(winding_number(xz, centre)) <= 0.5:
+            continue
+        keep = np.linalg.norm(xz - centre, axis=1) <= reach
+        if len(others):
+            keep &= _distance_to_loop(xz, own) <= np.min([_distance_to_loop(xz, o) for o in others], axis=0)
+        step = keep & np.roll(keep, -1)
+        if not shut:
+            step[-1] = False  # no step from a chain's end back to its start
+        r = rest[a] + t * (rest[b] - rest[a])
+        draped.append(np.linalg.norm(np.roll(xz, -1, axis=0) - xz, axis=1)[step])
+        made.append(np.linalg.norm(np.roll(r, -1, axis=0) - r, axis=1)[step])
+    if not made or np.sum([m.sum() for m in made]) <= 0.0:
+        return None
+    draped, made = np.concatenate(draped), np.concatenate(made)
+    taut = draped >= made
+    ratio = float(draped.sum() / made.sum())
+    stretch = float(draped[taut].sum() / made[taut].sum()) - 1.0 if taut.any() else ratio - 1.0
+    return stretch, ratio
+
+
 class _Plane:
     """A cutting plane through ``centre`` with unit ``normal``, and the frame that makes it horizontal."""
 
@@ -76,22 +217,22 @@ class _Plane:
         c = self.rot @ self.centre
         self.height, self.centre_xz = float(c[1]), c[[0, 2]]
 
-    def loops_round(self, sections, verts, reach, half_width=None):
-        """Hulls (point arrays, perimeter, equations) of the section loops that go round the centre,
-        none of whose points lies farther than ``reach`` (m) from it, outermost first. With ``half_width``
-        (m) the hull takes only the loop's points within it of the centre across (x): a loose top's loop
-        at the chest runs out along the sleeves, which are no part of the chest."""
-        out = []
-        for loop in sections.loops(np.ascontiguousarray(verts @ self.rot.T), self.height):
-            if len(loop) < 3 or np.max(np.linalg.norm(loop - self.centre_xz, axis=1)) > reach:
-                continue
-            if abs(winding_number(loop, self.centre_xz)) > 0.5:
-                if half_width is not None:
-                    loop = loop[np.abs(loop[:, 0] - self.centre_xz[0]) <= half_width]
-                h = _hull(loop)
-                if h is not None:
-                    out.append(h)
-        return sorted(out, key=lambda h: -h[1])
+    def section(self, sections, verts):
+        """The section loops (k, 2) of a mesh (``verts`` (n, 3) m) in the plane, in its horizontal frame, and
+        whether each is closed."""
+        return sections.loops(np.ascontiguousarray(verts @ self.rot.T), self.height, return_closed=True)
+
+    def body_part(self, sections, verts, reach):
+        """(own loop, its hull's perimeter m, the other loops) of the body's smallest section loop that
+        goes round the centre with no point farther than ``reach`` (m) from it; None when none does."""
+        loops = [lp for lp in self.section(sections, verts)[0] if len(lp) >= 3]
+        round_ = [(h[1], i) for i, lp in enumerate(loops)
+                  if np.max(np.linalg.norm(lp - self.centre_xz, axis=1)) <= reach
+                  and abs(winding_number(lp, self.centre_xz)) > 0.5 and (h := _hull(lp)) is not None]
+        if not round_:
+            return None
+        girth, i = min(round_)
+        return loops[i], girth, loops[:i] + loops[i + 1:]
 
 
 def _limb_planes(model, verts):
@@ -114,10 +255,10 @@ def _limb_planes(model, verts):
     return out
 
 
-def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND, band=BAND):
+def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND, band=BAND, across=False):
     """Mask of the yarn edges that run round the region: both ends within ``band`` of the plane (and at
     most ``above`` over it), the edge within 60 degrees of it, and its midpoint inside the garment's hull
-    (+ ``margin``)."""
+    (+ ``margin``); with ``across``, the edges the plane cuts instead, their midpoints inside the hull."""
     a, b = pos[edges[:, 0]], pos[edges[:, 1]]
     off_a, off_b = (a - plane.centre) @ plane.normal, (b - plane.centre) @ plane.normal
     d = b - a
@@ -125,6 +266,8 @@ def _round_edges(edges, pos, plane, hull_eq, margin=0.01, above=BAND, band=BAND)
     along = np.abs(d @ plane.normal) <= ROUND_COS * np.maximum(length, 1e-12)
     mid = (0.5 * (a + b)) @ plane.rot.T
     inside = np.all(mid[:, [0, 2]] @ hull_eq[:, :2].T + hull_eq[:, 2] <= margin, axis=1)
+    if across:
+        return ((off_a > 0.0) != (off_b > 0.0)) & inside
     return ((np.abs(off_a) <= band) & (np.abs(off_b) <= band) & (off_a <= above) & (off_b <= above) & along
             & inside)
 
@@ -142,8 +285,10 @@ class FitTable:
         given = d.get("targets_cm") if d.get("source") == "morph" else None
         self.estimated = set() if given is None else {k for k, t in TARGET_NAME.items() if t not in given}
         self.given = set() if given is None else {k for k, t in TARGET_NAME.items() if t in given}
-        m = self.measurer.measure(self.body_verts, names=TORSO, mass=False)
-        self.regions = []  # (region, side, plane, reach, body girth m)
+        # a man's chest row in his chest girth's plane, under the armpits: the figure he gives (its garment
+        # girth is his shirt's torso loop, its armholes and sleeves left out; docs/MEASUREMENTS.md)
+        m = self.measurer.measure(self.body_verts, names=TORSO, mass=False, gender=self.gender)
+        self.regions = []  # (region, side, plane, reach, body girth m, body part's loop, other body loops)
         self._above = {}  # torso region -> how far above its plane its cloth counts (m)
         self.chest_y = float(m.planes["bust"])
         g = self.gender
@@ -152,17 +297,17 @@ class FitTable:
         for name in TORSO:
             if name == "underbust" and not female:
                 continue
-            centre, half = self._torso_centre(m.planes[name])
+            centre, own, others = self._torso_loops(m.planes[name])
             label = "chest" if name == "bust" and not female else name
-            self.regions.append((label, "", _Plane(centre, (0.0, 1.0, 0.0)), 1.0, float(m.values[name]), half))
+            self.regions.append((label, "", _Plane(centre, (0.0, 1.0, 0.0)), 1.0, float(m.values[name]), own, others))
             # only a bust/chest plane reaches the armholes (lower, hanging forearms can touch a heavy waist)
             self._above[label] = self._below_armpits(m.planes[name]) if name == "bust" else BAND
         # the body's sections round the openings, built once for every drape on this body
         self.loops = BodyLoops(self.body_verts, model.body_tris)
         for name, side, plane, reach in _limb_planes(model, self.body_verts):
-            loops = plane.loops_round(self.measurer.sections, self.body_verts, reach)
-            if loops:
-                self.regions.append((name, side, plane, reach, loops[-1][1], None))
+            part = plane.body_part(self.measurer.sections, self.body_verts, reach)
+            if part is not None:
+                self.regions.append((name, side, plane, reach, part[1], part[0], part[2]))
 
     def _below_armpits(self, y):
         """How far above a torso plane at ``y`` the cloth round it counts: ``BAND``, or less where the body's
@@ -173,18 +318,19 @@ class FitTable:
         below = self.measurer.sections.apart(self.body_verts, [y])[0]
         return float(steps[int(np.argmin(apart))] - 0.001) if below and not apart.all() else BAND
 
-    def _torso_centre(self, y):
-        """Centre (3,) of the torso loop's hull at height ``y`` (the largest loop spanning x = 0) and the
-        half width (m) across which a garment's loop counts there: the torso's, plus ``TORSO_MARGIN``."""
-        best = None
-        for loop in self.measurer.sections.loops(self.body_verts, y):
+    def _torso_loops(self, y):
+        """(centre (3,) of the torso loop's hull, the torso loop (k, 2), the body's other loops) at height
+        ``y``: the torso's is the largest loop spanning x = 0."""
+        loops = [lp for lp in self.measurer.sections.loops(self.body_verts, y) if len(lp) >= 3]
+        best, at = None, None
+        for i, loop in enumerate(loops):
             h = _hull(loop)
             if h is not None and loop[:, 0].min() <= 0.0 <= loop[:, 0].max() and (best is None or h[1] > best[1]):
-                best = h
+                best, at = h, i
         if best is None:
-            return np.array([0.0, y, 0.0]), None
+            return np.array([0.0, y, 0.0]), np.zeros((0, 2)), []
         c = best[0].mean(axis=0)
-        return np.array([c[0], y, c[1]]), float(np.abs(best[0][:, 0] - c[0]).max()) + TORSO_MARGIN
+        return np.array([c[0], y, c[1]]), loops[at], loops[:at] + loops[at + 1:]
 
     def rows(self, setup, pos, maps=None):
         """The table (module docstring) of ``setup``'s garment at ``pos``: list of dict."""
@@ -197,24 +343,33 @@ class FitTable:
         length = np.linalg.norm(pos[edges[:, 1]] - pos[edges[:, 0]], axis=1)
         limit = float(setup.material.wearable_stretch)
         out = []
-        for name, side, plane, reach, body_girth, half in self.regions:
-            loops = plane.loops_round(sections, pos, max(reach, 3.0 * body_girth / (2 * np.pi)), half)
-            if not loops:
+        tris = mesh.triangles()
+        for name, side, plane, reach, body_girth, own, others in self.regions:
+            reach = max(reach, 3.0 * body_girth / (2 * np.pi))
+            loops, closed = plane.section(sections, pos)
+            tape = garment_girth(loops, plane.centre_xz, own, others, reach, closed)
+            if tape is None:
                 continue  # the garment does not go round this region
-            hull, girth, eq = loops[0]
+            hull, girth, eq = tape
             for band in (BAND, 2 * BAND):  # coarse cloth (a suit's waist: rings 4 cm apart) has none within BAND
                 above = self._above.get(name, BAND)
                 sel = _round_edges(edges, pos, plane, eq, above=above if above < BAND else band, band=band) & (l0 > 0)
                 if sel.any():
                     break
+            if not sel.any():  # a coarse mesh whose rows miss the band: the edges the plane cuts
+                sel = _round_edges(edges, pos, plane, eq, across=True) & (l0 > 0)
             if not sel.any():
                 continue
             strain = length[sel] / l0[sel] - 1.0
             long_ = l0[sel] >= 0.003
             verts = np.unique(edges[sel])
-            row = _row(name, side, body_girth, girth, float(length[sel].sum() / l0[sel].sum() - 1.0),
-                       float(strain[long_].max()) if long_.any() else 0.0,
-                       float(maps["pressure_kpa"][verts].max()), limit)
+            # the stretch along the tape's own line; the band's edges where that line has no step
+            hoop = loop_strain(tris, mesh.verts, pos, plane, own, others, reach)
+            ratio = hoop[1] if hoop is not None else float(length[sel].sum() / l0[sel].sum())
+            row = _row(name, side, body_girth, girth, hoop[0] if hoop is not None else ratio - 1.0,
+                       float(strain[long_].max()) if long_.any() else 0.0, float(maps["pressure_kpa"][verts].max()),
+                       limit)
+            row["garment_made_cm"] = round(100.0 * girth / ratio, 2)
             row["estimated"] = name in self.estimated
             out.append(row)
         # a girth the customer gave has its row, also where the garment does not go round it
