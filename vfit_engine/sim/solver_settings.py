@@ -82,6 +82,44 @@ class VerletSettings:
 
 
 @dataclass(frozen=True)
+class PDSettings(VerletSettings):
+    """Settings of the projective-dynamics solver (:class:`vfit_engine.sim.solver_pd.SolverPD`): the constraint
+    bands of :class:`VerletSettings` (``substeps`` are its steps a frame, ``iterations`` its global iterations a
+    step; the Verlet solver's explicit-step settings do not apply), and:
+
+    Attributes
+    ----------
+    contact_weight : float
+        The contacts' constant weight in the matrix, as a share of the fabric's typical stretch stiffness of an
+        edge: strong enough that the cloth's elements feel the body within the step, weak enough not to lock the
+        cloth where it lies (a strong one, 0.3, held a sphere's drape at 28 % stretch at 5 iterations).
+    angle_weight : float
+        The corner angle limits' weight, as a share of the same stiffness.
+    chebyshev_rho : float
+        The spectral radius estimate of Chebyshev's acceleration (0: none).
+    chebyshev_delay : int
+        Plain iterations before the acceleration starts.
+    contact_sweeps : int
+        Exact projections of the contact points onto their half-spaces after the iterations.
+    hinge_every : int
+        The hinges' forces (and the other forces outside the matrix) are evaluated at every ``hinge_every``-th
+        iteration, the iterations between keep them.
+    bend_in_matrix : bool
+        The bend limits and bend springs (second neighbours) as elements of the matrix (else as forces with a
+        diagonal, :mod:`vfit_engine.kernels.pd`).
+    """
+
+    substeps: int = 1
+    iterations: int = 10
+    contact_weight: float = 0.01
+    angle_weight: float = 0.05
+    chebyshev_rho: float = 0.9
+    chebyshev_delay: int = 2
+    contact_sweeps: int = 2
+    bend_in_matrix: bool = True
+
+
+@dataclass(frozen=True)
 class ContactSettings:
     """How the cloth meets the body.
 
