@@ -35,23 +35,27 @@ SYMMETRY_RTOL = 1e-10
 LDLArrays = namedtuple("LDLArrays", "lp li lx d perm")
 
 
-def spring_laplacian(spring_indices, weights, n):
-    """The weighted graph Laplacian of springs: ``sum_s w_s (e_i - e_j)(e_i - e_j)^T``.
+def spring_laplacian(spring_indices, weights, n, diagonal=0.0):
+    """The weighted graph Laplacian of springs plus a diagonal: ``diag(diagonal) + sum_s w_s (e_i - e_j)(e_i -
+    e_j)^T``, the projective-dynamics global matrix with ``diagonal = mass / h^2``.
 
     Parameters
     ----------
     spring_indices : (s, 2) int
-        Vertex pairs ``(i, j)``, ``i != j``.
+        Vertex pairs ``(i, j)``, ``i != j``; a repeated pair adds its weights.
     weights : (s,) float
         Weight of each spring (N/m for a projective-dynamics spring).
     n : int
         Vertex count.
+    diagonal : float or (n,) float
+        Added to the diagonal (kg/s^2 for ``mass / h^2``).
 
     Returns
     -------
     scipy.sparse.csc_matrix
-        (n, n) float64, symmetric, with an entry on every diagonal position (zero for a vertex in no spring), so
-        that adding a diagonal keeps the pattern.
+        (n, n) float64, symmetric, with every diagonal entry and every spring's pair stored even when its value
+        is zero: a weight set to zero keeps the sparsity pattern, so :meth:`SPDFactor.refactor` keeps its
+        analysis. (Adding two scipy matrices drops zeros: pass the diagonal here rather than adding it.)
     """
     ij = np.asarray(spring_indices, dtype=np.int64).reshape(-1, 2)
     w = np.asarray(weights, dtype=np.float64).reshape(-1)
@@ -61,7 +65,7 @@ def spring_laplacian(spring_indices, weights, n):
     diag = np.arange(n)
     rows = np.concatenate([i, j, i, j, diag])
     cols = np.concatenate([i, j, j, i, diag])
-    vals = np.concatenate([w, w, -w, -w, np.zeros(n)])
+    vals = np.concatenate([w, w, -w, -w, np.broadcast_to(np.asarray(diagonal, dtype=np.float64), (n,))])
     return sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
 
 
