@@ -255,6 +255,12 @@ def test_a_matrix_that_is_not_positive_definite_raises_and_a_good_refactor_recov
         f.solve(np.ones(30))
     f.refactor(good)
     assert rel_err(f.solve(np.ones(30)), spsolve(good, np.ones(30))) < TOL
+    unsymmetric = random_spd(30, 22).tolil()
+    unsymmetric[3, 4] += 1.0
+    with pytest.raises(ValueError, match="not symmetric"):
+        f.refactor(unsymmetric)  # any failed refactor: the old factor is not used for the new matrix
+    with pytest.raises(RuntimeError, match="unusable"):
+        f.solve(np.ones(30))
 
 
 @pytest.mark.parametrize("a, message", [

@@ -97,7 +97,6 @@ class SPDFactor:
             raise ValueError(f"unknown ordering {ordering!r}: one of {', '.join(ORDERINGS)}")
         self._asked = ordering
         self._pattern = None
-        self._valid = False
         self.refactor(A)
 
     def refactor(self, A):
@@ -116,8 +115,10 @@ class SPDFactor:
         Raises
         ------
         ValueError
-            As the constructor. After a non-positive pivot the factor is unusable until a refactor succeeds.
+            As the constructor. After a failed refactor the factor is unusable (:meth:`solve` raises
+            RuntimeError) until a refactor succeeds.
         """
+        self._valid = False  # until this factor succeeds: a failure part-way leaves no stale factor in use
         a = _canonical_csc(A)
         changed = not self._has_pattern(a)
         if changed and _transpose_index(a) is None:
