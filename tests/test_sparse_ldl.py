@@ -224,6 +224,12 @@ def _iterate(lp, li, lx, d, perm, b, x, work, iterations):
         ldl_solve3(lp, li, lx, d, perm, x, work)
 
 
+@numba.njit
+def _solve_packed(factor, x, work):
+    """The factor passed whole, as the named tuple of SPDFactor.arrays."""
+    ldl_solve3(factor.lp, factor.li, factor.lx, factor.d, factor.perm, x, work)
+
+
 def test_the_kernel_solve_called_from_jitted_code_matches_the_class():
     a = cloth_matrix(15)
     f = SPDFactor(a)
@@ -236,6 +242,9 @@ def test_the_kernel_solve_called_from_jitted_code_matches_the_class():
     np.testing.assert_array_equal(x, ref)
     _iterate(*f.arrays, b, x, work, 1)
     assert rel_err(x, spsolve(a, b)) < TOL
+    packed = b.copy()
+    _solve_packed(f.arrays, packed, work)
+    np.testing.assert_array_equal(packed, x)
 
 
 # -- bad input -------------------------------------------------------------------------------------
