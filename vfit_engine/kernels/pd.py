@@ -33,6 +33,8 @@ move to ``b``: ``b_i += w_ip x_p`` (``pin_ptr``, ``pin_nbr``, ``pin_w`` in CSR f
 """
 import math
 
+import numpy as np
+
 from vfit_engine._jit import njit
 from vfit_engine.kernels.bending import add_hinge_forces
 from vfit_engine.kernels.contact_make import contact_point
@@ -98,8 +100,7 @@ def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, t_lo, t_hi, w):
 
 
 @njit
-def _contact_targets(x, x0, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, friction, w_c, b,
-                     gap, count):
+def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count):
     """Add ``w_c t`` (module docstring, contacts) of every free vertex into ``b``; ``gap`` (n, 3) m keeps each
     vertex's push (its target less the iterate), ``count`` (n,) is scratch."""
     n = x.shape[0]
@@ -137,30 +138,80 @@ def _contact_targets(x, x0, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c
     for i in range(n):
         if inv_mass[i] <= 0.0:
             continue
-        tx, ty, tz = x[i, 0], x[i, 1], x[i, 2]
         if count[i] > 0.0:
-            gx, gy, gz = gap[i, 0] / count[i], gap[i, 1] / count[i], gap[i, 2] / count[i]
-            depth = math.sqrt(gx * gx + gy * gy + gz * gz)
-            tx, ty, tz = tx + gx, ty + gy, tz + gz
-            if depth > 0.0:
-                nx, ny, nz = gx / depth, gy / depth, gz / depth
-                # the slip along the body since the step began, held back as far as friction holds it
-                sx, sy, sz = tx - x0[i, 0], ty - x0[i, 1], tz - x0[i, 2]
-                sn = sx * nx + sy * ny + sz * nz
-                sx, sy, sz = sx - sn * nx, sy - sn * ny, sz - sn * nz
-                slip = math.sqrt(sx * sx + sy * sy + sz * sz)
-                hold = 1.0 if slip <= friction * depth else friction * depth / slip
-                tx, ty, tz = tx - hold * sx, ty - hold * sy, tz - hold * sz
-            gap[i, 0], gap[i, 1], gap[i, 2] = tx - x[i, 0], ty - x[i, 1], tz - x[i, 2]
-        b[i, 0] += w_c * tx
-        b[i, 1] += w_c * ty
-        b[i, 2] += w_c * tz
+            gap[i, 0] /= count[i]
+            gap[i, 1] /= count[i]
+            gap[i, 2] /= count[i]
+        b[i, 0] += w_c[i] * (x[i, 0] + gap[i, 0])
+        b[i, 1] += w_c[i] * (x[i, 1] + gap[i, 1])
+        b[i, 2] += w_c[i] * (x[i, 2] + gap[i, 2])
+
+
+@njit
+def contact_forces(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, rho, lam, nrm, acc_g, acc_w):
+    """Update the contact forces ``lam`` (n,) N along ``nrm`` (n, 3) at the iterate ``x`` (Uzawa: each touching
+    vertex's force grows by ``rho`` times its depth below its half-spaces, the contact points' signed depths
+    spread over their vertices by their weights, and never pulls: ``lam >= 0``); a vertex no point touches
+    has none. ``acc_g`` (n,), ``acc_w`` (n,) are scratch."""
+    n = x.shape[0]
+    for i in range(n):
+        acc_g[i] = acc_w[i] = 0.0
+        nrm[i, 0] = nrm[i, 1] = nrm[i, 2] = 0.0
+    for m in range(n_c):
+        p = c_list[m]
+        for side in range(2):
+            if side == 0:
+                nx, ny, nz, h = c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p]
+            elif c_nq2[p] == c_nq2[p]:
+                nx, ny, nz, h = c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p]
+            else:
+                break
+            px, py, pz = contact_point(x, pt_v, pt_b, p)
+            g = h - (nx * px + ny * py + nz * pz)
+            for k in range(3):
+                v = pt_v[p, k]
+                w = pt_b[p, k]
+                if w <= 0.0 or inv_mass[v] <= 0.0:
+                    continue
+                acc_g[v] += w * g
+                acc_w[v] += w
+                nrm[v, 0] += w * nx
+                nrm[v, 1] += w * ny
+                nrm[v, 2] += w * nz
+    for i in range(n):
+        if acc_w[i] <= 0.0:
+            lam[i] = 0.0
+            continue
+        q = math.sqrt(nrm[i, 0] * nrm[i, 0] + nrm[i, 1] * nrm[i, 1] + nrm[i, 2] * nrm[i, 2])
+        if q > 0.0:
+            nrm[i, 0] /= q
+            nrm[i, 1] /= q
+            nrm[i, 2] /= q
+        lam[i] = max(lam[i] + rho[i] * acc_g[i] / acc_w[i], 0.0)
+
+
+@njit
+def contact_vertices(inv_mass, pt_v, pt_b, c_list, n_c, touched):
+    """``touched`` (n,) bool: the free vertices of the ``n_c`` contact points listed in ``c_list`` (their weight
+    in the matrix is the contacts' strong one this step); returns how many changed from what it held."""
+    new = np.zeros(touched.shape[0], dtype=np.bool_)
+    for m in range(n_c):
+        p = c_list[m]
+        for k in range(3):
+            if pt_b[p, k] > 0.0 and inv_mass[pt_v[p, k]] > 0.0:
+                new[pt_v[p, k]] = True
+    changed = 0
+    for i in range(touched.shape[0]):
+        if new[i] != touched[i]:
+            changed += 1
+            touched[i] = new[i]
+    return changed
 
 
 @njit
 def pd_rhs(x, x0, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi,
            a_w, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, pin_idx, pin_ptr, pin_nbr, pin_w, pts_v, pts_b, c_n, c_h,
-           c_n2, c_nq2, c_h2, c_list, n_c, friction, w_c, b, gap, count, f_lag, lag):
+           c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count, f_lag, lag, lam, nrm):
     """The local step (module docstring): ``b`` (n, 3) for the global solve at the iterate ``x`` (n, 3) m.
 
     Parameters
@@ -186,7 +237,8 @@ def pd_rhs(x, x0, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, 
     pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c
         The contact points and the half-spaces of the ``n_c`` listed in ``c_list``
         (:func:`vfit_engine.kernels.contact_make.make_contacts`).
-    friction : float;  w_c : float, N/m
+    w_c : (n,) N/m
+        Each vertex's contact weight (its diagonal in ``A``).
     b : (n, 3) out;  gap : (n, 3) out, m (each vertex's contact push);  count : (n,) scratch
     f_lag : (n, 3) N;  lag : bool
         The forces outside ``A`` and their diagonal's ``D x`` (the hinges' and the springs'): with ``lag`` those
@@ -203,8 +255,12 @@ def pd_rhs(x, x0, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, 
         px, py, pz = _band(x, e_i[e], e_j[e], e_lo[e], e_hi[e])
         _scatter(b, e_i[e], e_j[e], e_w[e], px, py, pz)
     _corners(x, b, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi, a_w)
-    _contact_targets(x, x0, inv_mass, pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, friction, w_c, b,
-                     gap, count)
+    _contact_targets(x, inv_mass, pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count)
+    for i in range(n):
+        if lam[i] > 0.0:
+            b[i, 0] += lam[i] * nrm[i, 0]
+            b[i, 1] += lam[i] * nrm[i, 1]
+            b[i, 2] += lam[i] * nrm[i, 2]
     for i in range(n):
         for q in range(pin_ptr[i], pin_ptr[i + 1]):
             p = pin_nbr[q]
@@ -250,12 +306,14 @@ def chebyshev(x, x_new, x_prev, k, delay, rho, omega):
 
 
 @njit
-def soft_push(gap, inv_mass, w_c, h2, push):
-    """``push`` (n, 3) m: the normal displacement over the step of the soft contacts at the last iterate,
-    ``w_c h^2 / m`` times each vertex's push (the impulse the contact term gave it); the exact projection adds
-    its own moves after (:func:`vfit_engine.kernels.contact_solve.solve_contacts`)."""
+def soft_push(gap, inv_mass, w_c, h2, push, lam, nrm):
+    """``push`` (n, 3) m: the normal displacement the soft contacts gave each vertex over the step, ``w_c h^2 / m``
+    times its push at the last iterate (the contact force ``w_c gap`` over the step; cloth resting on the skin:
+    ``g h^2``); the exact projection adds its own moves after
+    (:func:`vfit_engine.kernels.contact_solve.solve_contacts`)."""
     for i in range(gap.shape[0]):
-        s = w_c * h2 * inv_mass[i]
-        push[i, 0] = s * gap[i, 0]
-        push[i, 1] = s * gap[i, 1]
-        push[i, 2] = s * gap[i, 2]
+        s = w_c[i] * h2 * inv_mass[i]
+        f = lam[i] * h2 * inv_mass[i]
+        push[i, 0] = s * gap[i, 0] + f * nrm[i, 0]
+        push[i, 1] = s * gap[i, 1] + f * nrm[i, 1]
+        push[i, 2] = s * gap[i, 2] + f * nrm[i, 2]

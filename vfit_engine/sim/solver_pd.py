@@ -23,33 +23,20 @@ import math
 
 import numpy as np
 from scipy import sparse
-from scipy.sparse import linalg as sparse_linalg
 
 from vfit_engine.collide.body_mesh import empty_grid
 from vfit_engine.kernels.contact_make import make_contacts
 from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
-from vfit_engine.kernels.pd import chebyshev, pd_rhs, soft_push
+from vfit_engine.kernels.pd import chebyshev, contact_forces, contact_vertices, pd_rhs, soft_push
+from vfit_engine.kernels.sparse_ldl import ldl_solve3
 from vfit_engine.sim.bending import hinge_gradient_norms
 from vfit_engine.sim.constraints import KIND_ANGLE, KIND_BEND, build_constraints, stretch_rigidity
 from vfit_engine.sim.contact_points import body_sag, contact_points
+from vfit_engine.sim.linear import SPDFactor
 from vfit_engine.sim.solver_settings import ContactSettings, PDSettings
 from vfit_engine.sim.springs import BEND, STRUCTURAL
 from vfit_engine.sim.state import State
-
-
-class _SuperLU:
-    """Stand-in for the Numba factor: SuperLU on the symmetric minimum-degree order."""
-
-    def __init__(self, a):
-        self._lu = sparse_linalg.splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                                      options=dict(SymmetricMode=True))
-
-    def same_pattern(self, a):
-        return False
-
-    def solve_into(self, b, out):
-        out[:] = self._lu.solve(b)
 
 
 class SolverPD:
@@ -84,6 +71,10 @@ class SolverPD:
         self._gap, self._push, self._zero_f = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
         self._count = np.zeros(n)
         self._f_lag = np.zeros((n, 3))
+        self._touched = np.zeros(n, dtype=np.bool_)
+        self._work = np.zeros((n, 3))
+        self._lam, self._nrm, self._acc_g, self._acc_w = np.zeros(n), np.zeros((n, 3)), np.zeros(n), np.zeros(n)
+        self.refactors = 0
         self._hot = np.zeros(n, dtype=np.bool_)
         self._dt = None
         self._factor = None
@@ -174,13 +165,14 @@ class SolverPD:
             d_off += np.bincount(h_i.ravel(), (h_k[:, None] * g * g.sum(axis=1, keepdims=True)).ravel(), n)
         else:
             h_i, h_k, h_rest = np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0)
-        w_c = st.contact_weight * k_typ
+        self._w_lo, self._w_hi = st.contact_weight * k_typ, st.contact_weight_touch * k_typ
         # the matrix: mass, diagonal of the forces outside it, contact weight, and the pair elements
         pi = np.concatenate([e_i, con.corner[ang], con.corner[ang]])
         pj = np.concatenate([e_j, con.i[ang], con.j[ang]])
         pw = np.concatenate([e_w, a_w, a_w])
-        diag = np.where(free, mh2 + d_off + w_c, 1.0)
-        diag += np.where(free, np.bincount(pi, pw, n) + np.bincount(pj, pw, n), 0.0)
+        diag = np.where(free, mh2 + d_off + np.bincount(pi, pw, n) + np.bincount(pj, pw, n), 1.0)
+        self._diag0 = diag.copy()
+        diag[free] += self._w_lo
         both = free[pi] & free[pj]
         rows = np.concatenate([pi[both], pj[both], np.arange(n)])
         cols = np.concatenate([pj[both], pi[both], np.arange(n)])
@@ -203,13 +195,16 @@ class SolverPD:
                   c(con.t_hi[ang]), c(a_w), c(s_i, i64), c(s_j, i64),
                   c(s_lo), c(s_hi), c(s_w), c(h_i, i64), c(h_k), c(h_rest), self._pins, pin_ptr,
                   c(fp[order], i64), c(fw[order]))
-        return arrays, a, w_c
+        return arrays, a
 
     def _prepare(self, dt):
         if self._dt == dt:
             return
-        self._arrays, a, self._w_c = self._elements(dt)
-        self._factor = _SuperLU(a)
+        self._arrays, a = self._elements(dt)
+        self._factor = SPDFactor(a)
+        self._w_c = np.where(self._inv_mass > 0, self._w_lo, 0.0)
+        self._touched[:] = False
+        self._rho = self.settings.contact_rho * (self._diag0 + self._w_c)
         self._dt = dt
 
     @property
@@ -288,15 +283,26 @@ class SolverPD:
             self._c_h, self._c_list, self._c_n2, self._c_nq2, self._c_h2, 0, self.points.count, self._body_vel,
             self._sphere_vel, self._c_u, self._body_sag, self._sag_max, self._ground)
         self.contact_queries += queries
+        if contact_vertices(self._inv_mass, self._pt_v, self._pt_b, self._c_list, n_c, self._touched):
+            # the vertices touching the body hold to it strongly; the others weakly (PDSettings.contact_weight)
+            self._w_c[:] = np.where(self._touched, self._w_hi, np.where(self._inv_mass > 0, self._w_lo, 0.0))
+            self._factor.refactor_diagonal(self._diag0 + self._w_c)
+            self.refactors += 1
+        lp, li, lx, d, perm = self._factor.arrays
         np.copyto(self._xprev, x)
         omega = 1.0
         for k in range(int(st.iterations)):
+            if st.contact_rho > 0:
+                contact_forces(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
+                               self._c_nq2, self._c_h2, self._c_list, n_c, self._rho, self._lam, self._nrm,
+                               self._acc_g, self._acc_w)
             pd_rhs(x, xp, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
-                   self._c_nq2, self._c_h2, self._c_list, n_c, float(c.friction), self._w_c, self._b, self._gap,
-                   self._count, self._f_lag, k % int(st.hinge_every) != 0)
-            self._factor.solve_into(self._b, self._xh)
+                   self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
+                   self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm)
+            np.copyto(self._xh, self._b)
+            ldl_solve3(lp, li, lx, d, perm, self._xh, self._work)
             omega = chebyshev(x, self._xh, self._xprev, k, int(st.chebyshev_delay), float(st.chebyshev_rho), omega)
-        soft_push(self._gap, self._inv_mass, self._w_c, dt * dt, self._push)
+        soft_push(self._gap, self._inv_mass, self._w_c, dt * dt, self._push, self._lam, self._nrm)
         for _ in range(int(st.contact_sweeps)):
             solve_contacts(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_list, 0, n_c,
                            self._push, self._c_n2, self._c_nq2, self._c_h2, self._c_live, False, self._c_u,
