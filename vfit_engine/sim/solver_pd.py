@@ -73,7 +73,8 @@ class SolverPD:
         self._f_lag = np.zeros((n, 3))
         self._touched = np.zeros(n, dtype=np.bool_)
         self._work = np.zeros((n, 3))
-        self._lam, self._nrm, self._acc_g, self._acc_w = np.zeros(n), np.zeros((n, 3)), np.zeros(n), np.zeros(n)
+        self._lam, self._nrm, self._plane = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3))
+        self._acc_g, self._acc_n, self._acc_w = np.zeros(n), np.zeros((n, 3)), np.zeros(n)
         self.refactors = 0
         self._hot = np.zeros(n, dtype=np.bool_)
         self._dt = None
@@ -133,7 +134,7 @@ class SolverPD:
         n = m.particle_count
         free = self._inv_mass > 0
         mass = np.where(free, np.asarray(m.mass, dtype=np.float64), 0.0)
-        mh2 = mass / (dt * dt)
+        mh2 = self._mh2 = mass / (dt * dt)
         k_typ = stretch_rigidity(m) / float(np.median(m.spring_rest[m.spring_type == STRUCTURAL])) \
             if np.any(m.spring_type == STRUCTURAL) else 1.0
         dist = con.corner < 0
@@ -204,7 +205,7 @@ class SolverPD:
         self._factor = SPDFactor(a)
         self._w_c = np.where(self._inv_mass > 0, self._w_lo, 0.0)
         self._touched[:] = False
-        self._rho = self.settings.contact_rho * (self._diag0 + self._w_c)
+        self._rho = self.settings.contact_rho * (self._mh2 + self._w_c)
         self._dt = dt
 
     @property
@@ -283,7 +284,8 @@ class SolverPD:
             self._c_h, self._c_list, self._c_n2, self._c_nq2, self._c_h2, 0, self.points.count, self._body_vel,
             self._sphere_vel, self._c_u, self._body_sag, self._sag_max, self._ground)
         self.contact_queries += queries
-        if contact_vertices(self._inv_mass, self._pt_v, self._pt_b, self._c_list, n_c, self._touched):
+        if self._w_hi != self._w_lo and contact_vertices(self._inv_mass, self._pt_v, self._pt_b, self._c_list, n_c,
+                                                         self._touched):
             # the vertices touching the body hold to it strongly; the others weakly (PDSettings.contact_weight)
             self._w_c[:] = np.where(self._touched, self._w_hi, np.where(self._inv_mass > 0, self._w_lo, 0.0))
             self._factor.refactor_diagonal(self._diag0 + self._w_c)
@@ -295,7 +297,7 @@ class SolverPD:
             if st.contact_rho > 0:
                 contact_forces(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
                                self._c_nq2, self._c_h2, self._c_list, n_c, self._rho, self._lam, self._nrm,
-                               self._acc_g, self._acc_w)
+                               self._plane, self._acc_g, self._acc_n, self._acc_w)
             pd_rhs(x, xp, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
                    self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
                    self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm)
