@@ -228,15 +228,15 @@ def contact_vertices(inv_mass, pt_v, pt_b, c_list, n_c, touched):
 
 
 @njit
-def pd_rhs(x, x0, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi,
+def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi,
            a_w, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, pin_idx, pin_ptr, pin_nbr, pin_w, pts_v, pts_b, c_n, c_h,
            c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count, f_lag, lag, lam, nrm):
     """The local step (module docstring): ``b`` (n, 3) for the global solve at the iterate ``x`` (n, 3) m.
 
     Parameters
     ----------
-    x0, y : (n, 3) m
-        The step's start and its inertial prediction.
+    y : (n, 3) m
+        The step's inertial prediction.
     mh2 : (n,) kg/s^2
         ``m / h^2`` of the free vertices (0 at pins).
     inv_mass : (n,) 1/kg

@@ -298,7 +298,7 @@ class SolverPD:
                 contact_forces(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
                                self._c_nq2, self._c_h2, self._c_list, n_c, self._rho, self._lam, self._nrm,
                                self._plane, self._acc_g, self._acc_n, self._acc_w)
-            pd_rhs(x, xp, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
+            pd_rhs(x, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
                    self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
                    self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm)
             np.copyto(self._xh, self._b)

@@ -1,0 +1,170 @@
+"""Projective-dynamics kernels (vfit_engine.kernels.pd) against slow NumPy references (tests/naive_pd.py) on
+seeded data, and the analytic cases of the PD solver (vfit_engine.sim.solver_pd)."""
+import math
+
+import numpy as np
+import pytest
+from scipy.sparse.linalg import spsolve
+
+import naive_pd
+from vfit_engine.kernels.pd import chebyshev, contact_forces, pd_rhs
+from vfit_engine.sim.bending import hinge_angles
+from vfit_engine.sim.model import Model
+from vfit_engine.sim.solver_pd import SolverPD
+from vfit_engine.sim.solver_settings import PDSettings
+from vfit_engine.sim.springs import grid_polygons
+
+I64 = np.int64
+
+
+def _cloth(seed, n=5):
+    """A small cloth (its model) at a seeded random shape near its rest, some edges stretched, and seeded
+    random element bands, weights and contact planes."""
+    rng = np.random.default_rng(seed)
+    pos, fv, fo = grid_polygons(n, n, 0.1, 0.1)
+    model = Model.from_polygons(fv, fo, pos, "cotton", pin_indices=[0, n - 1])
+    x = pos + rng.normal(scale=0.004, size=pos.shape)
+    return rng, model, x
+
+
+def _elements(rng, model):
+    s = model.spring_indices
+    e = s[: len(s) // 2]
+    lo = model.spring_rest[: len(e)] * rng.uniform(0.7, 1.0, len(e))
+    hi = model.spring_rest[: len(e)] * rng.uniform(1.0, 1.05, len(e))
+    dist = [(int(i), int(j), float(a), float(b), float(w)) for (i, j), a, b, w in
+            zip(e, lo, hi, rng.uniform(10, 2000, len(e)))]
+    c = model.corners
+    t_lo = rng.uniform(0.8, 1.5, len(c))
+    t_hi = t_lo + rng.uniform(0.0, 0.3, len(c))
+    corners = [(int(i), int(j), int(k), float(a), float(b), float(w)) for (i, k, j), a, b, w in
+               zip(c, t_lo, t_hi, rng.uniform(1, 100, len(c)))]
+    f = s[len(s) // 2:]
+    rest = model.spring_rest[len(s) // 2:]
+    springs = [(int(i), int(j), float(r), float(r * 1.01), float(w)) for (i, j), r, w in
+               zip(f, rest, rng.uniform(1, 50, len(f)))]
+    h = model.hinges
+    hinges = (h.indices, rng.uniform(1e-6, 1e-4, h.count), hinge_angles(h.indices, model.rest_pos) + 0.1)
+    return dist, corners, springs, hinges
+
+
+def _planes(rng, x, pts_v, pts_b):
+    """Random half-spaces of half the points: about half of them cut in (depth <= 3 mm), a second plane on some."""
+    out = []
+    listed = rng.choice(len(pts_v), size=len(pts_v) // 2, replace=False)
+    for p in listed:
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        pt = pts_b[p] @ x[pts_v[p]]
+        out.append((p, n, float(n @ pt + rng.uniform(-0.003, 0.003))))
+    return listed, out
+
+
+def _points(rng, model):
+    nv = model.particle_count
+    tri = rng.integers(0, nv, size=(12, 3))
+    bary = rng.dirichlet(np.ones(3), size=12)
+    verts = np.concatenate([np.repeat(np.arange(nv)[:, None], 3, axis=1), tri]).astype(I64)
+    b = np.concatenate([np.tile([1.0, 0.0, 0.0], (nv, 1)), bary])
+    return verts, b
+
+
+def _contact_arrays(listed, planes, count):
+    c_n, c_h = np.zeros((count, 3)), np.zeros(count)
+    c_n2, c_nq2, c_h2 = np.zeros((count, 3)), np.full(count, np.nan), np.zeros(count)
+    for p, n, h in planes:
+        c_n[p], c_h[p] = n, h
+    return c_n, c_h, c_n2, c_nq2, c_h2, np.ascontiguousarray(listed, dtype=I64)
+
+
+def _a(rows, col, dtype=np.float64):
+    return np.ascontiguousarray([r[col] for r in rows], dtype=dtype)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_local_step_matches_the_reference(seed):
+    rng, model, x = _cloth(seed)
+    n = model.particle_count
+    dist, corners, springs, hinges = _elements(rng, model)
+    pts_v, pts_b = _points(rng, model)
+    listed, planes = _planes(rng, x, pts_v, pts_b)
+    c_n, c_h, c_n2, c_nq2, c_h2, c_list = _contact_arrays(listed, planes, len(pts_v))
+    inv_mass = model.inv_mass.copy()
+    mh2 = np.where(inv_mass > 0, rng.uniform(0.1, 1.0, n), 0.0)
+    d_off = np.where(inv_mass > 0, rng.uniform(0.0, 5.0, n), 0.0)
+    w_c = np.where(inv_mass > 0, rng.uniform(1.0, 20.0, n), 0.0)
+    y = x + rng.normal(scale=0.002, size=x.shape)
+    lam, nrm = rng.uniform(0, 0.1, n) * (rng.random(n) < 0.3), rng.normal(size=(n, 3))
+    pins = model.pin_indices
+    couplings = [(2, 0, 30.0), (2, 4, 12.0), (6, 0, 5.0)]
+    ptr = np.zeros(n + 1, I64)
+    for i, _, _ in couplings:
+        ptr[i + 1:] += 1
+    want, want_push = naive_pd.rhs(x, y, mh2, inv_mass, d_off, dist, corners, springs, hinges, pins, couplings, w_c,
+                                   planes, pts_v, pts_b, lam, nrm)
+    b, gap, count, f_lag = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3))
+    args = (x, y, mh2, inv_mass, d_off, _a(dist, 0, I64), _a(dist, 1, I64), _a(dist, 2), _a(dist, 3), _a(dist, 4),
+            _a(corners, 0, I64), _a(corners, 1, I64), _a(corners, 2, I64), np.cos(_a(corners, 3)),
+            np.cos(_a(corners, 4)), _a(corners, 3), _a(corners, 4), _a(corners, 5), _a(springs, 0, I64),
+            _a(springs, 1, I64), _a(springs, 2), _a(springs, 3), _a(springs, 4), hinges[0], hinges[1], hinges[2],
+            pins, ptr, np.array([c[1] for c in couplings], I64), np.array([c[2] for c in couplings]), pts_v, pts_b,
+            c_n, c_h, c_n2, c_nq2, c_h2, c_list, len(c_list), w_c, b, gap, count, f_lag)
+    pd_rhs(*args, False, lam, nrm)
+    np.testing.assert_allclose(b, want, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(gap, want_push, rtol=1e-9, atol=1e-12)
+    # a lagged call keeps the forces outside the matrix from the last evaluation, not from the new iterate
+    x2 = x + rng.normal(scale=0.001, size=x.shape)
+    lagged = np.zeros((n, 3))
+    pd_rhs(*((x2,) + args[1:-4]), lagged, gap, count, f_lag, True, lam, nrm)
+    fresh = np.zeros((n, 3))
+    pd_rhs(*((x2,) + args[1:-4]), fresh, gap, count, np.zeros((n, 3)), False, lam, nrm)
+    assert not np.allclose(lagged, fresh)
+    want_lag = fresh - naive_pd.rhs(x2, y, 0 * mh2, inv_mass, d_off, [], [], springs, hinges, [], [], 0 * w_c, [],
+                                    pts_v, pts_b, 0 * lam, nrm)[0] \
+        + naive_pd.rhs(x, y, 0 * mh2, inv_mass, d_off, [], [], springs, hinges, [], [], 0 * w_c, [], pts_v, pts_b,
+                       0 * lam, nrm)[0]
+    free = inv_mass > 0
+    np.testing.assert_allclose(lagged[free], want_lag[free], rtol=1e-9, atol=1e-9)
+
+
+def test_corner_projection_turns_both_arms_by_half_the_excess():
+    u, v = np.array([1.0, 0.0, 0.0]), np.array([0.0, 2.0, 0.0])  # a right angle
+    pu, pv = naive_pd.corner_targets(u, v, 0.0, math.radians(80))
+    assert math.degrees(math.acos(pu @ pv / (np.linalg.norm(pu) * np.linalg.norm(pv)))) == pytest.approx(80)
+    assert np.linalg.norm(pu) == pytest.approx(1.0) and np.linalg.norm(pv) == pytest.approx(2.0)
+    assert math.degrees(math.acos(pu @ u)) == pytest.approx(5.0)  # each arm turned by half of the 10 degrees
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_contact_forces_match_the_reference(seed):
+    rng, model, x = _cloth(seed)
+    n = model.particle_count
+    pts_v, pts_b = _points(rng, model)
+    listed, planes = _planes(rng, x, pts_v, pts_b)
+    c_n, c_h, c_n2, c_nq2, c_h2, c_list = _contact_arrays(listed, planes, len(pts_v))
+    rho = rng.uniform(1.0, 10.0, n)
+    lam = rng.uniform(0, 0.01, n) * (rng.random(n) < 0.5)
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    plane = x + rng.normal(scale=0.002, size=x.shape)
+    want = naive_pd.contact_forces(x, model.inv_mass, pts_v, pts_b, planes, rho, lam, nrm, plane)
+    got = lam.copy(), nrm.copy(), plane.copy()
+    contact_forces(x, model.inv_mass, pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, len(c_list), rho, *got,
+                   np.zeros(n), np.zeros((n, 3)), np.zeros(n))
+    for g, w in zip(got, want):
+        np.testing.assert_allclose(g, w, rtol=1e-9, atol=1e-12)
+    assert np.all(got[0] >= 0) and np.any(got[0] > 0)
+
+
+def test_chebyshev_takes_the_solution_before_delay_then_extrapolates():
+    rng = np.random.default_rng(3)
+    x, x_new, x_prev = rng.normal(size=(3, 7, 3))
+    a, prev = x.copy(), x_prev.copy()
+    om = chebyshev(a, x_new, prev, 0, 2, 0.9, 1.0)
+    assert om == 1.0 and np.allclose(a, x_new, rtol=0, atol=1e-15) and np.array_equal(prev, x)
+    a, prev = x.copy(), x_prev.copy()
+    om = chebyshev(a, x_new, prev, 2, 2, 0.9, 1.0)
+    assert om == pytest.approx(2.0 / (2.0 - 0.81))
+    np.testing.assert_allclose(a, om * (x_new - x_prev) + x_prev)
+    om2 = chebyshev(a, x_new, prev, 3, 2, 0.9, om)
+    assert om2 == pytest.approx(4.0 / (4.0 - 0.81 * om))
