@@ -198,10 +198,16 @@ class SolverPD:
                   c(fp[order], i64), c(fw[order]))
         return arrays, a
 
+    def matrix(self):
+        """The global step's matrix at the last step prepared (scipy CSC, N/m): the vertices clear of the body at
+        their weak contact weight, pinned rows the identity."""
+        return self._matrix.copy()
+
     def _prepare(self, dt):
         if self._dt == dt:
             return
         self._arrays, a = self._elements(dt)
+        self._matrix = a
         self._factor = SPDFactor(a)
         self._w_c = np.where(self._inv_mass > 0, self._w_lo, 0.0)
         self._touched[:] = False
@@ -220,7 +226,8 @@ class SolverPD:
 
     # -- state and stepping --------------------------------------------------------------------------
     def init_state(self, dt, pos=None, vel=None):
-        """A state at ``pos`` (default rest) moving at ``vel`` (default 0), m and m/s."""
+        """A state at ``pos`` (default rest) moving at ``vel`` (default 0), m and m/s; ``pos_prev = pos - vel dt +
+        g dt^2 / 2`` so that free fall is exact (each step's prediction adds ``g dt^2`` to the last step's move)."""
         dt = float(dt)
         self._prepare(dt)
         m = self.model
@@ -228,10 +235,12 @@ class SolverPD:
         if x.shape != (m.particle_count, 3):
             raise ValueError(f"pos must have shape ({m.particle_count}, 3)")
         v = np.zeros_like(x) if vel is None else np.broadcast_to(np.asarray(vel, dtype=np.float64), x.shape)
-        v = np.where((self._inv_mass > 0)[:, None], v, 0.0)
+        free = (self._inv_mass > 0)[:, None]
+        v = np.where(free, v, 0.0)
         self._d_last[:] = -np.inf
         self._c_nq2[:] = np.nan
-        return State(x, x - v * dt, dt)
+        self._lam[:] = 0.0
+        return State(x, x - v * dt + np.where(free, 0.5 * self._gravity * dt * dt, 0.0), dt)
 
     def set_iterations(self, iterations):
         """Iterate ``iterations`` times per step from the next step on."""
