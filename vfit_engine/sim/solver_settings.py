@@ -122,7 +122,7 @@ class PDSettings(VerletSettings):
     contact_weight_touch: float = 0.01
     contact_rho: float = 1.0
     angle_weight: float = 0.05
-    chebyshev_rho: float = 0.0
+    chebyshev_rho: float = 0.8
     chebyshev_delay: int = 2
     contact_sweeps: int = 0
     bend_in_matrix: bool = True
