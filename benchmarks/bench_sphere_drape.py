@@ -38,7 +38,7 @@ CENTRE = np.zeros(3)
 
 
 def make_drape(n, material="cotton", substeps=8, iterations=None, friction=0.5, air_damping=0.5, spacing=0.015,
-               bend_limit=True):
+               bend_limit=True, solver="verlet"):
     """Solver and state of the drape scene for an n x n cloth.
 
     Parameters
@@ -51,6 +51,9 @@ def make_drape(n, material="cotton", substeps=8, iterations=None, friction=0.5, 
         Spacing of the contact points over the cloth's triangles; 0: the vertices only.
     bend_limit : bool
         Keep the solver's bend limit (False: bend springs only).
+    solver : {"verlet", "pd"}
+        The Gauss-Seidel solver, or projective dynamics (:class:`vfit_engine.sim.solver_pd.SolverPD`; then
+        ``substeps`` and ``iterations`` are its steps a frame and iterations a step).
 
     Returns
     -------
@@ -61,6 +64,8 @@ def make_drape(n, material="cotton", substeps=8, iterations=None, friction=0.5, 
     from vfit_engine.io.meshdata import MeshData
     from vfit_engine.sim.contact_points import contact_points
     from vfit_engine.sim.model import Model
+    from vfit_engine.sim.solver_pd import SolverPD
+    from vfit_engine.sim.solver_settings import PDSettings
     from vfit_engine.sim.solver_verlet import ContactSettings, SolverVerlet, VerletSettings
 
     pos, fv, fo = grid_polygons(n, n, 1.0, 1.0)
@@ -71,10 +76,11 @@ def make_drape(n, material="cotton", substeps=8, iterations=None, friction=0.5, 
         kw["iterations"] = iterations
     if not bend_limit:
         kw["bend_limit"] = None
-    settings = VerletSettings(**kw)
+    settings = PDSettings(**kw) if solver == "pd" else VerletSettings(**kw)
     points = contact_points(fv, fo, pos, spacing=spacing if spacing > 0 else 0.015, surface=spacing > 0)
-    solver = SolverVerlet(model, settings, ContactSettings(friction=friction),
-                          spheres=np.array([[CENTRE[0], CENTRE[1], CENTRE[2], RADIUS]]), points=points)
+    kind = SolverPD if solver == "pd" else SolverVerlet
+    solver = kind(model, settings, ContactSettings(friction=friction),
+                  spheres=np.array([[CENTRE[0], CENTRE[1], CENTRE[2], RADIUS]]), points=points)
     state = solver.init_state(1.0 / FPS / substeps)
     return solver, state, MeshData(pos, fo, fv).triangles()
 
@@ -117,9 +123,12 @@ def main(argv=None):
     defaults = VerletSettings()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=100, help="particles per side")
-    ap.add_argument("--substeps", type=int, default=8)
-    ap.add_argument("--iterations", type=int, default=defaults.iterations,
-                    help="constraint and contact sweeps per substep (default: the solver's, %(default)s)")
+    ap.add_argument("--solver", choices=("verlet", "pd"), default="verlet",
+                    help="the Gauss-Seidel solver or projective dynamics (default %(default)s)")
+    ap.add_argument("--substeps", type=int, default=None, help="substeps (pd: steps) a frame (default 8; pd 1)")
+    ap.add_argument("--iterations", type=int, default=None,
+                    help="constraint and contact sweeps per substep, or pd iterations a step (default: the "
+                         f"solver's, {defaults.iterations}; pd 10)")
     ap.add_argument("--material", default="cotton")
     ap.add_argument("--spacing", type=float, default=0.015,
                     help="spacing of the contact points over the cloth's triangles, m (0: vertices only; "
@@ -135,12 +144,14 @@ def main(argv=None):
                     help="also run the plain Numba baseline (baseline_sphere_drape.py) in this run")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args(argv)
+    if args.substeps is None:
+        args.substeps = 1 if args.solver == "pd" else 8
 
     t0 = time.perf_counter()
     import numba  # (import time is not compile time)
     t_import = time.perf_counter() - t0
     kw = dict(material=args.material, substeps=args.substeps, iterations=args.iterations, friction=args.friction,
-              spacing=args.spacing, bend_limit=not args.no_bend_limit)
+              spacing=args.spacing, bend_limit=not args.no_bend_limit, solver=args.solver)
     t0 = time.perf_counter()
     run(4, frames=1, **kw)  # compiles (or loads from cache) every kernel used
     compile_s = time.perf_counter() - t0
@@ -162,7 +173,7 @@ def main(argv=None):
     finite = bool(np.all(np.isfinite(state.pos)))
     pen_v, pen_s, inside = penetration_mm(state.pos, tris) if finite else (float("nan"),) * 3
     result = dict(
-        n=args.n, substeps=args.substeps, iterations=st.iterations,
+        n=args.n, solver=args.solver, substeps=args.substeps, iterations=st.iterations,
         # no Provot strain limit (stretch is compliant beyond a slack band); the kernel runs the cloth's
         # halves on up to two threads
         parallel=True, strain_limit=None, relaxation=None, bend_limited=st.bend_limit is not None,

@@ -237,6 +237,8 @@ def main(argv=None):
                     help="write each case's body.obj, final.obj and report.json here (with --check: default a "
                          "temporary directory)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--solver", choices=("verlet", "pd"), default="verlet",
+                    help="the cloth solver (pd: projective dynamics, vfit_engine.sim.solver_pd; default verlet)")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a drape setting other than the product's, to try one: a DrapeSettings field (ramp_frames=20) "
                          "or solver.FIELD / contact.FIELD (solver.substeps=4); repeatable")
@@ -269,8 +271,12 @@ def main(argv=None):
     model = BodyModel.load()
     measurer = Measurer(model)
     names = args.garment or sorted(p.name for p in GARMENTS.iterdir() if p.is_dir())
-    settings = with_settings(DrapeSettings() if args.frames is None else DrapeSettings(max_frames=args.frames),
-                             args.set)
+    settings = DrapeSettings() if args.frames is None else DrapeSettings(max_frames=args.frames)
+    if args.solver == "pd":
+        from vfit_engine.drape.settings import projective
+
+        settings = projective(settings)
+    settings = with_settings(settings, args.set)
     say = (lambda *a, **k: None) if args.json else print
     if args.out is not None:
         say(f"writing cases to {args.out}")

@@ -235,7 +235,7 @@ def push_points(x, w, v, b, planes, push=None, live=False, only=None, carry=None
     above -ACTIVE_GAP. ``carry``: (u (P, 3), push_u (n, 3), push_w (n,)) -- the body's velocity at each point
     and every vertex's sums of |dx_k| u and |dx_k| (added to in place).
     """
-    from vfit_engine.kernels.cloth import ACTIVE_GAP
+    from vfit_engine.kernels.contact_solve import ACTIVE_GAP
 
     x = x.copy()
     push = np.zeros_like(x) if push is None else push.copy()

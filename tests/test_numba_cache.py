@@ -137,7 +137,8 @@ def test_stamp_follows_imports_of_the_folder_only():
         if path not in seen:
             seen.add(path)
             todo += _jit._module_source(path)[1]
-    assert {p.stem for p in seen} == {"cloth", "bending", "contact_make", "collide_mesh", "integrate", "springs"}
+    assert {p.stem for p in seen} == {"cloth", "bending", "contact_make", "contact_solve", "collide_mesh", "integrate",
+                                      "springs"}
 
 
 def test_kernels_import_from_vfit_only_their_folder_and_the_preset():

@@ -370,7 +370,7 @@ def _random_points(rng, n, count):
 
 
 def test_solve_contacts_matches_reference():
-    from vfit_engine.kernels.cloth import _solve_contacts
+    from vfit_engine.kernels.contact_solve import solve_contacts as _solve_contacts
 
     rng = np.random.default_rng(11)
     n = 25
@@ -421,7 +421,7 @@ def test_solve_contacts_matches_reference():
 def test_contact_point_is_pushed_exactly_onto_its_plane():
     """A point inside a triangle below its plane by g: the point (not only its vertices) rises by g,
     the vertices in proportion w_k b_k; with a pinned vertex the free ones rise more."""
-    from vfit_engine.kernels.cloth import _solve_contacts
+    from vfit_engine.kernels.contact_solve import solve_contacts as _solve_contacts
 
     x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     v = np.array([[0, 1, 2]], np.int64)
@@ -437,7 +437,7 @@ def test_contact_point_is_pushed_exactly_onto_its_plane():
 
 
 def test_friction_matches_reference_and_analytic():
-    from vfit_engine.kernels.cloth import PUSH_HOT, _friction
+    from vfit_engine.kernels.contact_solve import PUSH_HOT, contact_velocity as _friction
 
     rng = np.random.default_rng(12)
     n = 60

@@ -429,3 +429,10 @@ class MeshCollider:
             raise InputError(f"max_push must be a positive length in m, got {max_push!r}")
         return project_points(x, x_prev, inv_mass, self._grid, self.skin, self.friction, self.restitution,
                               float(max_push), np.inf)
+
+
+def empty_grid():
+    """A body grid with no triangles: the cloth kernels' argument when there is no body mesh."""
+    z3, zi = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    return K.BodyGrid(np.zeros((0, 16)), zi, z3, zi, z3, z3, np.zeros(3), np.ones(3, np.int64), 1.0, 1.0,
+                    np.zeros(2, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(1))

@@ -28,6 +28,8 @@ from vfit_engine.drape.settings import DrapeSettings
 from vfit_engine.errors import VfitError
 from vfit_engine.sim.contact_points import contact_points
 from vfit_engine.sim.model import Model
+from vfit_engine.sim.solver_pd import SolverPD
+from vfit_engine.sim.solver_settings import PDSettings
 from vfit_engine.sim.solver_verlet import SolverVerlet
 from vfit_engine.sim.springs import STRUCTURAL
 from vfit_engine.sim.untangle import untangle
@@ -109,9 +111,10 @@ def build_solver(setup, settings, garment=None):
         points = points.joined(contact_points(g.face_verts, g.face_offsets, garment.rest,
                                               spacing=settings.surface_spacing))
     exact = setup.collider_kind == "mesh"
-    solver = SolverVerlet(model, settings.solver, settings.contact, body=setup.collider if exact else None,
-                          spheres=setup.spheres, points=points,
-                          colliders=() if setup.project is None else [setup.project], ground=setup.ground)
+    kind = SolverPD if isinstance(settings.solver, PDSettings) else SolverVerlet
+    solver = kind(model, settings.solver, settings.contact, body=setup.collider if exact else None,
+                  spheres=setup.spheres, points=points, colliders=() if setup.project is None else [setup.project],
+                  ground=setup.ground)
     solver.sweep_from(setup.pins.indices)
     for zone, strain in setup.zones:
         # the cloth round an opening the body forces wider may stretch that far, and it starts there

@@ -2,10 +2,10 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from vfit_engine.errors import InputError
-from vfit_engine.sim.solver_settings import ContactSettings, VerletSettings
+from vfit_engine.sim.solver_settings import ContactSettings, PDSettings, VerletSettings
 
 #: Most subdivision levels of ``DrapeSettings.refine`` (:mod:`vfit_engine.drape.refine`; each multiplies the
 #: polygons by ~4 and the time by ~3-5: 2.3-3.7 per frame, and more frames to settle).
@@ -140,3 +140,16 @@ class DrapeSettings:
                 f"{100 * self.settle_share:g} % of the vertices move more than {1000 * self.settle_step:g} mm per "
                 f"frame, none more than {1000 * self.settle_max_step:g} mm per frame nor over the "
                 f"{self.settle_frames} frames together")
+
+
+def projective(settings=None, **solver):
+    """``settings`` (default the product's) with the projective-dynamics solver
+    (:class:`vfit_engine.sim.solver_pd.SolverPD`) and ``solver`` fields of its :class:`PDSettings`: the same
+    air damping and constraint bands; the push limits, given per Verlet substep, scaled to its longer steps."""
+    settings = settings or DrapeSettings()
+    old = settings.solver
+    pd = PDSettings(**{f: getattr(old, f) for f in ("gravity", "air_damping", "slack", "compression", "bend_limit",
+                                                     "shear_limit_deg", "shear_restore")}, **solver)
+    scale = old.substeps / pd.substeps
+    return replace(settings, solver=pd, push_start=settings.push_start * scale, push_end=settings.push_end * scale,
+                   slow_iterations=max(settings.slow_iterations, pd.iterations))

@@ -17,10 +17,12 @@ interior points of the barycentric lattice of order ``ceil(L_max / spacing)``. B
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from vfit_engine.collide.sag import SAG_TOLERANCE, convex_sag
 from vfit_engine.io.meshdata import MeshData
 
 
@@ -141,3 +143,14 @@ def _quad_centres(face_verts, face_offsets):
     v = np.stack([a, c, a], axis=1)
     b = np.tile([0.5, 0.5, 0.0], (quads.size, 1))
     return v, b
+
+
+def body_sag(body, points, contact):
+    """(V,) m: the body's extra thickness at its small bumps (``ContactSettings.sag``) for the contact ``points``
+    (a :class:`ContactPointSet`), from the body as it is now (a moving body's keeps it: its bumps move with it,
+    their shapes barely change); (0,): none (no body, the setting off, or no surface points)."""
+    if body is None or not contact.sag or not points.spacing > 0:
+        return np.zeros(0)
+    # the farthest a body point lies from the nearest point of the lattice; the points' own clearance
+    # covers the rise up to it, and SAG_TOLERANCE more is left to cut in at worst
+    return convex_sag(body.verts, body.tris, points.spacing / math.sqrt(3.0), contact.surface_skin + SAG_TOLERANCE)

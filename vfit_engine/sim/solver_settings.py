@@ -82,6 +82,56 @@ class VerletSettings:
 
 
 @dataclass(frozen=True)
+class PDSettings(VerletSettings):
+    """Settings of the projective-dynamics solver (:class:`vfit_engine.sim.solver_pd.SolverPD`): the constraint
+    bands of :class:`VerletSettings` (``substeps`` are its steps a frame, ``iterations`` its global iterations a
+    step; the Verlet solver's explicit-step settings do not apply), and:
+
+    Attributes
+    ----------
+    contact_weight, contact_weight_touch : float
+        The contacts' weight in the matrix, as a share of the fabric's typical stretch stiffness of an edge, of a
+        vertex clear of the body and of one touching it (one of its contact points within reach, its diagonal
+        refactored when the set changes): the cloth's elements feel the body within the step, and spread the
+        stretch it forces over the cloth (a weak weight on touching vertices let a top sink centimetres into the
+        bust within the step, and the exact projection after it stretched the edges there by 32 %); a clear
+        vertex's weight is a pull towards where it is, and a strong one locks the cloth (0.3 held a sphere's
+        drape at 28 % stretch at 5 iterations).
+    contact_rho : float
+        The contact forces' growth per unit depth at each iteration (Uzawa's step), as a share of the vertex's
+        diagonal in the matrix; 0: no contact forces (the weights alone).
+    angle_weight : float
+        The corner angle limits' weight, as a share of the same stiffness.
+    chebyshev_rho : float
+        The spectral radius estimate of Chebyshev's acceleration (0: none). Off: the iteration's true radius is
+        near 1 in cloth whose yarns lie inside their free band (the matrix holds their full stiffness there), and
+        with an estimate below it the frames reach a still state that is not the equilibrium -- a hanging strip
+        stopped at 0.50 % stretch with 0.8, not the 1.53 % its weight gives, for ever (``tests/test_pd.py``).
+    chebyshev_delay : int
+        Plain iterations before the acceleration starts.
+    contact_sweeps : int
+        Exact projections of the contact points onto their half-spaces after the iterations.
+    hinge_every : int
+        The hinges' forces (and the other forces outside the matrix) are evaluated at every ``hinge_every``-th
+        iteration, the iterations between keep them.
+    bend_in_matrix : bool
+        The bend limits and bend springs (second neighbours) as elements of the matrix (else as forces with a
+        diagonal, :mod:`vfit_engine.kernels.pd`).
+    """
+
+    substeps: int = 1
+    iterations: int = 10
+    contact_weight: float = 0.01
+    contact_weight_touch: float = 0.01
+    contact_rho: float = 1.0
+    angle_weight: float = 0.05
+    chebyshev_rho: float = 0.0
+    chebyshev_delay: int = 2
+    contact_sweeps: int = 0
+    bend_in_matrix: bool = True
+
+
+@dataclass(frozen=True)
 class ContactSettings:
     """How the cloth meets the body.
 

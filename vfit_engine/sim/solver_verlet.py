@@ -62,14 +62,13 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import dijkstra
 
-from vfit_engine.collide.sag import SAG_TOLERANCE, convex_sag
+from vfit_engine.collide.body_mesh import empty_grid
 from vfit_engine.kernels.bending import eval_hinge_forces
 from vfit_engine.kernels.cloth import ClothArrays, ContactPoints, ContactState, StepParams, cloth_substeps
-from vfit_engine.kernels.collide_mesh import BodyGrid
 from vfit_engine.kernels.springs import eval_spring_forces
 from vfit_engine.sim.bending import hinge_gradient_norms
 from vfit_engine.sim.constraints import KIND_SHEAR, build_constraints
-from vfit_engine.sim.contact_points import contact_points
+from vfit_engine.sim.contact_points import body_sag, contact_points
 from vfit_engine.sim.partition import halves, segment_of, segments
 from vfit_engine.sim.solver_settings import ContactSettings, VerletSettings  # noqa: F401  (the solver's API)
 from vfit_engine.sim.springs import SHEAR, STRUCTURAL
@@ -83,13 +82,6 @@ def _stable_scale(inv_mass, ksum, dsum, dt, safety):
     scale = np.ones(inv_mass.shape[0])
     np.divide(4.0 * safety, demand, out=scale, where=demand > 4.0 * safety)
     return scale
-
-
-def _empty_grid():
-    """A body grid with no triangles (the kernel's argument when there is no body mesh)."""
-    z3, zi = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    return BodyGrid(np.zeros((0, 16)), zi, z3, zi, z3, z3, np.zeros(3), np.ones(3, np.int64), 1.0, 1.0,
-                    np.zeros(2, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(1))
 
 
 class SolverVerlet:
@@ -158,7 +150,7 @@ class SolverVerlet:
         p = self.points.count
         self.body = body
         if body is None:
-            self._grid = _empty_grid()
+            self._grid = empty_grid()
         elif hasattr(body, "grid"):
             self._grid = body.grid
         else:
@@ -184,19 +176,8 @@ class SolverVerlet:
         # a still body: no velocities (body_moved gives them, and the scratch to carry the cloth with them)
         self._body_vel, self._sphere_vel = np.zeros((0, 3)), np.zeros((0, 3))
         self._c_u, self._push_u, self._push_w = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
-        self._body_sag = self._sag_of(body)
+        self._body_sag = body_sag(body, self.points, self.contact)
         self._sag_max = float(self._body_sag.max(initial=0.0))
-
-    def _sag_of(self, body):
-        """(V,) m: the body's extra thickness at its small bumps (``ContactSettings.sag``), from the body as it
-        is now (a moving body's keeps it: its bumps move with it, their shapes barely change); (0,): none."""
-        if body is None or not self.contact.sag or not self.points.spacing > 0:
-            return np.zeros(0)
-
-        # the farthest a body point lies from the nearest point of the lattice; the points' own clearance
-        # covers the rise up to it, and SAG_TOLERANCE more is left to cut in at worst
-        return convex_sag(body.verts, body.tris, self.points.spacing / math.sqrt(3.0),
-                          self.contact.surface_skin + SAG_TOLERANCE)
 
     def sweep_from(self, vertices):
         """Sweep the constraints outward from ``vertices`` (by graph distance, nearest first).

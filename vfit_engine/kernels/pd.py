@@ -1,0 +1,338 @@
+"""Numba kernels: the local step of projective dynamics for cloth, its Chebyshev update and the contact targets.
+
+One time step ``h`` of projective dynamics (Liu, Bargteil, O'Brien & Kavan 2013; Bouaziz et al. 2014) minimises
+``|x - y|^2_M / (2 h^2) + sum_e w_e |S_e x - p_e|^2 / 2`` with ``y`` the inertial prediction and ``p_e`` the
+projection of element ``e`` onto its allowed set. Alternating the local step (every ``p_e`` at the current
+iterate) and the global step (``A x = b``, ``A = M / h^2 + sum_e w_e S_e^T S_e`` constant) decreases it
+monotonically. :func:`pd_rhs` is the local step: it builds ``b`` for the global solve
+(:mod:`vfit_engine.sim.solver_pd` factors ``A`` once).
+
+Elements in ``A`` (``S_e`` the difference of two vertices, so ``A`` has the sparsity of the cloth's edges):
+
+* a **distance band**: the pair's vector projected onto lengths ``[lo, hi]`` (yarns free within their band,
+  stiffness ``w`` beyond it; a shear diagonal has ``lo = hi``);
+* a **corner angle band**: the two arms of a polygon corner, each turned in the corner's plane by half the excess
+  when the angle leaves ``[t_lo, t_hi]`` (lengths kept): Provot's shear limit as two vector elements on the
+  polygon's own edges.
+
+Elements outside ``A`` (their pairs would add fill to its factor: the bend limits join second neighbours, the
+hinges four vertices) act as forces ``f(x)`` evaluated at the iterate, with a diagonal ``D`` in ``A`` and
+``D x`` in ``b``: the fixed point is the same (``A x = b + f(x)``), and the iteration contracts as long as ``D``
+bounds their stiffness (Gershgorin's bound: ``2 w`` a vertex for a spring, ``k |g_m| sum_l |g_l|`` for a hinge).
+
+Contacts (soft in the iterations, exact after them): every free vertex has a constant weight ``w_c`` in ``A``;
+its target is the iterate itself, moved by the mean push its contact half-spaces ask for (the contact points'
+pushes spread over their vertices as :mod:`.contact_solve` spreads them), with the slip along the body since the
+step began held back by Coulomb friction (at most ``friction`` times the push). A constant weight keeps the
+factor fixed; the push is what the cloth's elements feel of the body during the step, so a cloth pulled tight
+over it is not projected against its own elements after every solve (that locked the stretch at 27 % in a
+prototype). After the iterations the caller projects the contact points onto their half-spaces exactly.
+
+Pinned vertices are rows of the identity in ``A`` (their position given), and their couplings to free vertices
+move to ``b``: ``b_i += w_ip x_p`` (``pin_ptr``, ``pin_nbr``, ``pin_w`` in CSR form over the free vertices).
+"""
+import math
+
+import numpy as np
+
+from vfit_engine._jit import njit
+from vfit_engine.kernels.bending import add_hinge_forces
+from vfit_engine.kernels.contact_make import contact_point
+
+
+@njit(inline="always")
+def _scatter(b, i, j, w, px, py, pz):
+    """b_j += w p, b_i -= w p: the term ``w S^T p`` of a pair element ``S = e_j - e_i``."""
+    b[j, 0] += w * px
+    b[j, 1] += w * py
+    b[j, 2] += w * pz
+    b[i, 0] -= w * px
+    b[i, 1] -= w * py
+    b[i, 2] -= w * pz
+
+
+@njit(inline="always")
+def _band(x, i, j, lo, hi):
+    """The vector x_j - x_i projected onto lengths [lo, hi] (the vector itself inside the band)."""
+    dx, dy, dz = x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2]
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if length <= 0.0:
+        return 0.0, lo, 0.0
+    t = min(max(length, lo), hi)
+    s = t / length
+    return s * dx, s * dy, s * dz
+
+
+@njit(inline="always")
+def _turn(ax, ay, az, bx, by, bz, angle):
+    """Unit vector ``a`` turned by ``angle`` (rad) towards unit vector ``b`` in their plane."""
+    c = ax * bx + ay * by + az * bz
+    qx, qy, qz = bx - c * ax, by - c * ay, bz - c * az
+    q = math.sqrt(qx * qx + qy * qy + qz * qz)
+    if q <= 1e-12:
+        return ax, ay, az
+    ca, sa = math.cos(angle), math.sin(angle) / q
+    return ca * ax + sa * qx, ca * ay + sa * qy, ca * az + sa * qz
+
+
+@njit
+def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, t_lo, t_hi, w):
+    """The corner angle elements (module docstring) into ``b``; ``cos_lo``, ``cos_hi`` are the cosines of the
+    band's smallest and largest angle (most corners lie inside it: no trigonometry for them)."""
+    for c in range(ci.shape[0]):
+        i, j, k = ci[c], cj[c], ck[c]
+        ux, uy, uz = x[i, 0] - x[k, 0], x[i, 1] - x[k, 1], x[i, 2] - x[k, 2]
+        vx, vy, vz = x[j, 0] - x[k, 0], x[j, 1] - x[k, 1], x[j, 2] - x[k, 2]
+        lu = math.sqrt(ux * ux + uy * uy + uz * uz)
+        lv = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if lu > 0.0 and lv > 0.0:
+            cosa = (ux * vx + uy * vy + uz * vz) / (lu * lv)
+            if cosa < cos_hi[c] or cosa > cos_lo[c]:
+                ux, uy, uz, vx, vy, vz = ux / lu, uy / lu, uz / lu, vx / lv, vy / lv, vz / lv
+                angle = math.acos(min(max(cosa, -1.0), 1.0))
+                # both arms turn towards each other (or apart) by half the excess
+                half = 0.5 * (angle - min(max(angle, t_lo[c]), t_hi[c]))
+                pux, puy, puz = _turn(ux, uy, uz, vx, vy, vz, half)
+                pvx, pvy, pvz = _turn(vx, vy, vz, ux, uy, uz, half)
+                ux, uy, uz, vx, vy, vz = lu * pux, lu * puy, lu * puz, lv * pvx, lv * pvy, lv * pvz
+        _scatter(b, k, i, w[c], ux, uy, uz)
+        _scatter(b, k, j, w[c], vx, vy, vz)
+
+
+@njit
+def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count):
+    """Add ``w_c t`` (module docstring, contacts) of every free vertex into ``b``; ``gap`` (n, 3) m keeps each
+    vertex's push (its target less the iterate), ``count`` (n,) is scratch."""
+    n = x.shape[0]
+    for i in range(n):
+        gap[i, 0] = gap[i, 1] = gap[i, 2] = 0.0
+        count[i] = 0.0
+    for m in range(n_c):
+        p = c_list[m]
+        for side in range(2):
+            if side == 0:
+                nx, ny, nz, h = c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p]
+            elif c_nq2[p] == c_nq2[p]:
+                nx, ny, nz, h = c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p]
+            else:
+                break
+            px, py, pz = contact_point(x, pt_v, pt_b, p)
+            g = h - (nx * px + ny * py + nz * pz)
+            if g <= 0.0:
+                continue
+            den = 0.0
+            for k in range(3):
+                if inv_mass[pt_v[p, k]] > 0.0:
+                    den += pt_b[p, k] * pt_b[p, k]
+            if den <= 0.0:
+                continue
+            for k in range(3):
+                v = pt_v[p, k]
+                if inv_mass[v] <= 0.0 or pt_b[p, k] == 0.0:
+                    continue
+                s = pt_b[p, k] * g / den
+                gap[v, 0] += s * nx
+                gap[v, 1] += s * ny
+                gap[v, 2] += s * nz
+                count[v] += 1.0
+    for i in range(n):
+        if inv_mass[i] <= 0.0:
+            continue
+        if count[i] > 0.0:
+            gap[i, 0] /= count[i]
+            gap[i, 1] /= count[i]
+            gap[i, 2] /= count[i]
+        b[i, 0] += w_c[i] * (x[i, 0] + gap[i, 0])
+        b[i, 1] += w_c[i] * (x[i, 1] + gap[i, 1])
+        b[i, 2] += w_c[i] * (x[i, 2] + gap[i, 2])
+
+
+@njit
+def contact_forces(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, rho, lam, nrm, plane, acc_g,
+                   acc_n, acc_w):
+    """Update the contact forces ``lam`` (n,) N along ``nrm`` (n, 3) at the iterate ``x`` (Uzawa: each touching
+    vertex's force grows by ``rho`` times its depth below its half-spaces -- the deepest share of its contact
+    points' signed depths -- and never pulls: ``lam >= 0``). A vertex keeps its plane
+    (``nrm`` and a point of it, ``plane`` (n, 3) m) while it has a force: pushed beyond the reach of the contact
+    search it is still held by it, and lets go only as its force falls to 0 (else it would fall back at once,
+    and a cloth pressed to the skin by its own tension chattered in and out at 1.8 mm a frame). ``acc_g`` (n,),
+    ``acc_n`` (n, 3), ``acc_w`` (n,) are scratch."""
+    n = x.shape[0]
+    for i in range(n):
+        acc_g[i] = acc_w[i] = 0.0
+        acc_n[i, 0] = acc_n[i, 1] = acc_n[i, 2] = 0.0
+    for m in range(n_c):
+        p = c_list[m]
+        for side in range(2):
+            if side == 0:
+                nx, ny, nz, h = c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p]
+            elif c_nq2[p] == c_nq2[p]:
+                nx, ny, nz, h = c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p]
+            else:
+                break
+            px, py, pz = contact_point(x, pt_v, pt_b, p)
+            g = h - (nx * px + ny * py + nz * pz)
+            den = 0.0
+            for k in range(3):
+                if inv_mass[pt_v[p, k]] > 0.0:
+                    den += pt_b[p, k] * pt_b[p, k]
+            if den <= 0.0:
+                continue
+            for k in range(3):
+                v = pt_v[p, k]
+                w = pt_b[p, k]
+                if w <= 0.0 or inv_mass[v] <= 0.0:
+                    continue
+                # the vertex's share of the point's depth (its move in the point's projection, PBD's); the deepest
+                # share decides: a point cutting in between vertices must not be cancelled by clear ones
+                share = w * g / den
+                if acc_w[v] == 0.0 or share > acc_g[v]:
+                    acc_g[v] = share
+                acc_w[v] += w
+                acc_n[v, 0] += w * nx
+                acc_n[v, 1] += w * ny
+                acc_n[v, 2] += w * nz
+    for i in range(n):
+        if acc_w[i] > 0.0:
+            q = math.sqrt(acc_n[i, 0] * acc_n[i, 0] + acc_n[i, 1] * acc_n[i, 1] + acc_n[i, 2] * acc_n[i, 2])
+            if q <= 0.0:
+                continue
+            g = acc_g[i]
+            for c in range(3):
+                nrm[i, c] = acc_n[i, c] / q
+                plane[i, c] = x[i, c] + g * nrm[i, c]
+        elif lam[i] > 0.0:
+            g = (nrm[i, 0] * (plane[i, 0] - x[i, 0]) + nrm[i, 1] * (plane[i, 1] - x[i, 1])
+                 + nrm[i, 2] * (plane[i, 2] - x[i, 2]))
+        else:
+            continue
+        lam[i] = max(lam[i] + rho[i] * g, 0.0)
+
+
+@njit
+def contact_vertices(inv_mass, pt_v, pt_b, c_list, n_c, touched):
+    """``touched`` (n,) bool: the free vertices of the ``n_c`` contact points listed in ``c_list`` (their weight
+    in the matrix is the contacts' strong one this step); returns how many changed from what it held."""
+    new = np.zeros(touched.shape[0], dtype=np.bool_)
+    for m in range(n_c):
+        p = c_list[m]
+        for k in range(3):
+            if pt_b[p, k] > 0.0 and inv_mass[pt_v[p, k]] > 0.0:
+                new[pt_v[p, k]] = True
+    changed = 0
+    for i in range(touched.shape[0]):
+        if new[i] != touched[i]:
+            changed += 1
+            touched[i] = new[i]
+    return changed
+
+
+@njit
+def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi,
+           a_w, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, pin_idx, pin_ptr, pin_nbr, pin_w, pts_v, pts_b, c_n, c_h,
+           c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count, f_lag, lag, lam, nrm):
+    """The local step (module docstring): ``b`` (n, 3) for the global solve at the iterate ``x`` (n, 3) m.
+
+    Parameters
+    ----------
+    y : (n, 3) m
+        The step's inertial prediction.
+    mh2 : (n,) kg/s^2
+        ``m / h^2`` of the free vertices (0 at pins).
+    inv_mass : (n,) 1/kg
+        0 at pins.
+    d_off : (n,) N/m
+        The diagonal that carries the forces outside ``A``.
+    e_i, e_j, e_lo, e_hi, e_w : (E,)
+        Distance bands in ``A``: ends, band (m) and weight (N/m).
+    a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi, a_w : (K,)
+        Corner angle bands: arms' ends, corner, the cosines of the band's ends, the band (rad) and weight (N/m).
+    s_i, s_j, s_lo, s_hi, s_w : (F,)
+        One-sided springs outside ``A`` (bend limits, explicit springs): ends, band (m), stiffness (N/m).
+    h_i, h_k, h_rest : (H, 4), (H,), (H,)
+        Bending hinges: vertices, stiffness (N m / rad^2), rest angle (rad).
+    pin_idx : (P,) int64;  pin_ptr (n + 1,), pin_nbr, pin_w
+        Pinned vertices (their rows the identity) and the free vertices' couplings to them.
+    pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c
+        The contact points and the half-spaces of the ``n_c`` listed in ``c_list``
+        (:func:`vfit_engine.kernels.contact_make.make_contacts`).
+    w_c : (n,) N/m
+        Each vertex's contact weight (its diagonal in ``A``).
+    b : (n, 3) out;  gap : (n, 3) out, m (each vertex's contact push);  count : (n,) scratch
+    f_lag : (n, 3) N;  lag : bool
+        The forces outside ``A`` and their diagonal's ``D x`` (the hinges' and the springs'): with ``lag`` those
+        kept in ``f_lag`` at an earlier iterate of the step are used (the hinges are most of the local step's
+        cost, and soft: every other iteration is enough), else they are evaluated here and kept there.
+    """
+    n = x.shape[0]
+    if not lag:
+        _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f_lag)
+    for i in range(n):
+        for c in range(3):
+            b[i, c] = mh2[i] * y[i, c] + f_lag[i, c]
+    for e in range(e_i.shape[0]):
+        px, py, pz = _band(x, e_i[e], e_j[e], e_lo[e], e_hi[e])
+        _scatter(b, e_i[e], e_j[e], e_w[e], px, py, pz)
+    _corners(x, b, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi, a_w)
+    _contact_targets(x, inv_mass, pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count)
+    for i in range(n):
+        if lam[i] > 0.0:
+            b[i, 0] += lam[i] * nrm[i, 0]
+            b[i, 1] += lam[i] * nrm[i, 1]
+            b[i, 2] += lam[i] * nrm[i, 2]
+    for i in range(n):
+        for q in range(pin_ptr[i], pin_ptr[i + 1]):
+            p = pin_nbr[q]
+            b[i, 0] += pin_w[q] * x[p, 0]
+            b[i, 1] += pin_w[q] * x[p, 1]
+            b[i, 2] += pin_w[q] * x[p, 2]
+    for q in range(pin_idx.shape[0]):
+        p = pin_idx[q]
+        b[p, 0], b[p, 1], b[p, 2] = x[p, 0], x[p, 1], x[p, 2]
+
+
+@njit
+def _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f):
+    """``f`` (n, 3) N: ``D x`` plus the forces of the elements outside ``A`` at ``x`` (module docstring)."""
+    for i in range(x.shape[0]):
+        for c in range(3):
+            f[i, c] = d_off[i] * x[i, c]
+    for e in range(s_i.shape[0]):
+        i, j = s_i[e], s_j[e]
+        px, py, pz = _band(x, i, j, s_lo[e], s_hi[e])
+        # the spring's force at the iterate: w (p - d) on j, its opposite on i
+        _scatter(f, i, j, s_w[e], px - (x[j, 0] - x[i, 0]), py - (x[j, 1] - x[i, 1]), pz - (x[j, 2] - x[i, 2]))
+    add_hinge_forces(x, x, 0.0, h_i, h_k, h_k, h_rest, f, 0, h_i.shape[0])
+
+
+@njit
+def chebyshev(x, x_new, x_prev, k, delay, rho, omega):
+    """The iterate after ``x_new`` (the global solve's), Chebyshev semi-iterative (Wang 2015), in place: on return
+    ``x`` is the next iterate and ``x_prev`` the one before it; returns the weight ``omega`` for the next call.
+    Iterations before ``delay`` take ``x_new`` as it is."""
+    if k < delay:
+        om = 1.0
+    elif k == delay:
+        om = 2.0 / (2.0 - rho * rho)
+    else:
+        om = 4.0 / (4.0 - rho * rho * omega)
+    for i in range(x.shape[0]):
+        for c in range(3):
+            xo = x[i, c]
+            x[i, c] = om * (x_new[i, c] - x_prev[i, c]) + x_prev[i, c]
+            x_prev[i, c] = xo
+    return om
+
+
+@njit
+def soft_push(gap, inv_mass, w_c, h2, push, lam, nrm):
+    """``push`` (n, 3) m: the normal displacement the soft contacts gave each vertex over the step, ``w_c h^2 / m``
+    times its push at the last iterate (the contact force ``w_c gap`` over the step; cloth resting on the skin:
+    ``g h^2``); the exact projection adds its own moves after
+    (:func:`vfit_engine.kernels.contact_solve.solve_contacts`)."""
+    for i in range(gap.shape[0]):
+        s = w_c[i] * h2 * inv_mass[i]
+        f = lam[i] * h2 * inv_mass[i]
+        push[i, 0] = s * gap[i, 0] + f * nrm[i, 0]
+        push[i, 1] = s * gap[i, 1] + f * nrm[i, 1]
+        push[i, 2] = s * gap[i, 2] + f * nrm[i, 2]

@@ -1,0 +1,312 @@
+"""Sparse symmetric positive definite systems of the projective-dynamics cloth solver (issue 32).
+
+The global step solves ``A X = B`` several times per time step with one constant matrix::
+
+    A = M / h^2 + sum_s w_s (e_i - e_j)(e_i - e_j)^T        (Liu 2013, Bouaziz 2014)
+
+(n, n), n the vertex count, ``X`` and ``B`` (n, 3). :class:`SPDFactor` factors it once as ``P A P^T = L D L^T``
+with the kernels of :mod:`vfit_engine.kernels.sparse_ldl` and hands the factor's arrays to a jitted frame loop
+(:attr:`SPDFactor.arrays`, in the order :func:`~vfit_engine.kernels.sparse_ldl.ldl_solve3` takes them).
+
+The fill-reducing order is SuperLU's multiple minimum degree on ``A + A^T`` (``splu(...).perm_c`` with
+``permc_spec="MMD_AT_PLUS_A"``, symmetric mode, no pivoting), used symmetrically: on garment matrices it gave the
+least fill of natural, reverse Cuthill-McKee, minimum degree and a geometric nested dissection (issue 32's
+measurements). SuperLU computes the order only as part of a full LU, which costs most of the first factor's time
+but happens once per sparsity pattern; should it fail, reverse Cuthill-McKee takes over.
+"""
+from collections import namedtuple
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+from scipy.sparse.linalg import splu
+
+from vfit_engine.kernels.sparse_ldl import ldl_numeric, ldl_solve3, ldl_symbolic
+
+#: The fill-reducing orders :class:`SPDFactor` knows, the default first.
+ORDERINGS = ("mmd", "rcm", "natural")
+
+#: Relative asymmetry ``|A_ij - A_ji| / max |A|`` still taken as symmetric: assembly sums the same terms in
+#: different orders on either side of the diagonal, which leaves differences of a few ulps.
+SYMMETRY_RTOL = 1e-10
+
+#: The factor as :func:`~vfit_engine.kernels.sparse_ldl.ldl_solve3` takes it, before ``x`` and ``work``:
+#: ``lp`` (n + 1,) int64, ``li`` (nnz_l,) int64, ``lx`` (nnz_l,) float64, ``d`` (n,) float64, ``perm`` (n,) int64.
+LDLArrays = namedtuple("LDLArrays", "lp li lx d perm")
+
+
+def spring_laplacian(spring_indices, weights, n, diagonal=0.0):
+    """The weighted graph Laplacian of springs plus a diagonal: ``diag(diagonal) + sum_s w_s (e_i - e_j)(e_i -
+    e_j)^T``, the projective-dynamics global matrix with ``diagonal = mass / h^2``.
+
+    Parameters
+    ----------
+    spring_indices : (s, 2) int
+        Vertex pairs ``(i, j)``, ``i != j``; a repeated pair adds its weights.
+    weights : (s,) float
+        Weight of each spring (N/m for a projective-dynamics spring).
+    n : int
+        Vertex count.
+    diagonal : float or (n,) float
+        Added to the diagonal (kg/s^2 for ``mass / h^2``).
+
+    Returns
+    -------
+    scipy.sparse.csc_matrix
+        (n, n) float64, symmetric, with every diagonal entry and every spring's pair stored even when its value
+        is zero: a weight set to zero keeps the sparsity pattern, so :meth:`SPDFactor.refactor` keeps its
+        analysis. (Adding two scipy matrices drops zeros: pass the diagonal here rather than adding it.)
+    """
+    ij = np.asarray(spring_indices, dtype=np.int64).reshape(-1, 2)
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    if w.shape[0] != ij.shape[0]:
+        raise ValueError(f"{ij.shape[0]} springs but {w.shape[0]} weights")
+    i, j = ij[:, 0], ij[:, 1]
+    diag = np.arange(n)
+    rows = np.concatenate([i, j, i, j, diag])
+    cols = np.concatenate([i, j, j, i, diag])
+    vals = np.concatenate([w, w, -w, -w, np.broadcast_to(np.asarray(diagonal, dtype=np.float64), (n,))])
+    return sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
+
+
+class SPDFactor:
+    """``P A P^T = L D L^T`` of a sparse symmetric positive definite matrix, for repeated solves.
+
+    Parameters
+    ----------
+    A : (n, n) scipy sparse matrix or array (or dense array)
+        Symmetric positive definite; duplicate entries are summed. Explicit zeros are kept (a weight that is zero
+        now keeps its place in the pattern) unless the pattern is unsymmetric with them.
+    ordering : {"mmd", "rcm", "natural"}
+        Fill-reducing order (module docstring); "natural" is for comparisons.
+
+    Raises
+    ------
+    ValueError
+        ``A`` is not square, is empty, has a NaN or infinite entry, is not symmetric, or is not positive definite
+        (a pivot ``D[k] <= 0``), each named in the message.
+
+    Notes
+    -----
+    :meth:`refactor` with the same pattern overwrites the arrays of :attr:`arrays` in place, so a jitted caller
+    holding them sees the new factor; a new pattern replaces them (:meth:`refactor` says so).
+    """
+
+    def __init__(self, A, ordering="mmd"):
+        if ordering not in ORDERINGS:
+            raise ValueError(f"unknown ordering {ordering!r}: one of {', '.join(ORDERINGS)}")
+        self._asked = ordering
+        self._pattern = None
+        self.refactor(A)
+
+    def refactor(self, A):
+        """Factor new values; the symbolic analysis is redone only when the sparsity pattern changed.
+
+        Parameters
+        ----------
+        A : (n, n) sparse matrix
+            As for the constructor (any size when the pattern changes).
+
+        Returns
+        -------
+        bool
+            True when the pattern changed: :attr:`arrays` are new arrays (re-read them), and the order too.
+
+        Raises
+        ------
+        ValueError
+            As the constructor. After a failed refactor the factor is unusable (:meth:`solve` raises
+            RuntimeError) until a refactor succeeds.
+        """
+        self._valid = False  # until this factor succeeds: a failure part-way leaves no stale factor in use
+        a = _canonical_csc(A)
+        changed = not self._has_pattern(a)
+        if changed and _transpose_index(a) is None:
+            a.eliminate_zeros()  # an explicit zero without its mirror entry is no entry
+            changed = not self._has_pattern(a)
+        if changed:
+            self._analyse(a)
+        _check_symmetric(a, self._mirror)
+        self._data = a.data
+        self._factor(a.data)
+        return changed
+
+    def refactor_diagonal(self, diagonal):
+        """Factor the last matrix with a new ``diagonal`` (n,) float64 and its other entries as they were: no
+        checks of the pattern or the symmetry, for a solver that changes per-vertex weights every step.
+
+        Raises
+        ------
+        ValueError
+            A non-finite diagonal, or a matrix no longer positive definite (as :meth:`refactor`).
+        """
+        diagonal = np.asarray(diagonal, dtype=np.float64)
+        if diagonal.shape != (self.n,) or not np.all(np.isfinite(diagonal)):
+            raise ValueError(f"the diagonal must be {self.n} finite numbers")
+        if np.any(self._diag_pos < 0):
+            raise ValueError(f"A has no entry at ({int(np.argmin(self._diag_pos))}, same) of its diagonal")
+        self._valid = False
+        self._data[self._diag_pos] = diagonal
+        self._factor(self._data)
+
+    def solve(self, B):
+        """``X = A^-1 B``.
+
+        Parameters
+        ----------
+        B : (n,) or (n, m) float
+            Right-hand sides (``m = 3`` is the kernel's native width; other widths go three columns at a time).
+
+        Returns
+        -------
+        (n,) or (n, m) float64
+            New array, the shape of ``B``.
+        """
+        if not self._valid:
+            raise RuntimeError("the factor is unusable: its last refactor failed")
+        b = np.asarray(B, dtype=np.float64)
+        n = self.n
+        if b.ndim not in (1, 2) or b.shape[0] != n:
+            raise ValueError(f"B must have shape ({n},) or ({n}, m), got {b.shape}")
+        cols = b.reshape(n, -1)
+        out = np.empty(cols.shape)
+        x = np.zeros((n, 3))
+        work = np.empty((n, 3))  # per call, not shared: two threads may solve at once (the kernel is nogil)
+        for c0 in range(0, cols.shape[1], 3):
+            c1 = min(c0 + 3, cols.shape[1])
+            x[:, : c1 - c0] = cols[:, c0:c1]
+            x[:, c1 - c0:] = 0.0
+            ldl_solve3(*self.arrays, x, work)
+            out[:, c0:c1] = x[:, : c1 - c0]
+        return out.reshape(b.shape)
+
+    @property
+    def n(self):
+        """Order of the matrix."""
+        return int(self._d.shape[0])
+
+    @property
+    def nnz_l(self):
+        """Entries of ``L`` below its unit diagonal (the fill measure)."""
+        return int(self._lp[-1])
+
+    @property
+    def ordering(self):
+        """The order in use: the one asked for, or "rcm" when SuperLU failed to give "mmd"."""
+        return self._ordering
+
+    @property
+    def arrays(self):
+        """:data:`LDLArrays` ``(lp, li, lx, d, perm)``: with ``x`` (n, 3) float64 (``B`` in, ``X`` out) and a
+        scratch ``work`` (n, 3) float64, ``ldl_solve3(*arrays, x, work)`` solves, also from jitted code."""
+        return LDLArrays(self._lp, self._li, self._lx, self._d, self._perm)
+
+    def _has_pattern(self, a):
+        return (self._pattern is not None and a.shape[0] == self.n
+                and np.array_equal(a.indptr, self._pattern[0]) and np.array_equal(a.indices, self._pattern[1]))
+
+    def _analyse(self, a):
+        """Order, the upper triangle of P A P^T and the symbolic factor; allocate the numeric arrays."""
+        mirror = _transpose_index(a)
+        if mirror is None:
+            raise ValueError(f"A is not symmetric: {_unmatched_entry(a)}")
+        n = a.shape[0]
+        perm, self._ordering = _order(a, self._asked)
+        pinv = np.empty(n, dtype=np.int64)
+        pinv[perm] = np.arange(n)
+        row = pinv[a.indices]
+        col = pinv[np.repeat(np.arange(n), np.diff(a.indptr))]
+        keep = np.flatnonzero(row <= col)
+        # the entries of A that make up C = P A P^T's upper triangle, in C's CSC order (column, then row)
+        c_index = keep[np.lexsort((row[keep], col[keep]))]
+        self._c_index = c_index
+        self._cp = np.concatenate([[0], np.cumsum(np.bincount(col[c_index], minlength=n))]).astype(np.int64)
+        self._ci = np.ascontiguousarray(row[c_index])
+        self._cx = np.empty(c_index.shape[0])
+        self._perm = np.ascontiguousarray(perm, dtype=np.int64)
+        self._parent = np.empty(n, dtype=np.int64)
+        count = np.empty(n, dtype=np.int64)
+        self._flag, self._stack, self._fill = (np.empty(n, dtype=np.int64) for _ in range(3))
+        ldl_symbolic(self._cp, self._ci, self._parent, count, self._flag)
+        self._lp = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+        self._li = np.empty(self._lp[-1], dtype=np.int64)
+        self._lx = np.empty(self._lp[-1])
+        self._d = np.empty(n)
+        self._y = np.zeros(n)
+        self._mirror = mirror
+        self._pattern = (a.indptr.copy(), a.indices.copy())
+        # where each diagonal entry lies in A's data (-1: none; refactor_diagonal needs them all)
+        cols = np.repeat(np.arange(n), np.diff(a.indptr))
+        self._diag_pos = np.full(n, -1, dtype=np.int64)
+        on = a.indices == cols
+        self._diag_pos[cols[on]] = np.flatnonzero(on)
+
+    def _factor(self, data):
+        np.take(data, self._c_index, out=self._cx)
+        self._y[:] = 0.0  # a failed factor leaves its scatter vector dirty
+        k = ldl_numeric(self._cp, self._ci, self._cx, self._lp, self._parent, self._li, self._lx, self._d,
+                        self._y, self._flag, self._stack, self._fill)
+        self._valid = k < 0
+        if k >= 0:
+            raise ValueError(f"A is not positive definite: pivot {k} of its LDL^T (row {self._perm[k]} of A, "
+                             f"order {self._ordering}) is {self._d[k]:.6g}")
+
+
+def _canonical_csc(A):
+    """A float64 CSC copy of ``A`` with summed duplicates and sorted indices; checks shape and finiteness."""
+    if np.iscomplexobj(A.data if sp.issparse(A) else A):
+        raise ValueError("A must be real")
+    a = sp.csc_matrix(A, dtype=np.float64, copy=True)
+    if a.shape[0] != a.shape[1]:
+        raise ValueError(f"A must be square, got shape {a.shape}")
+    if a.shape[0] == 0:
+        raise ValueError("A is empty (0 x 0)")
+    a.sum_duplicates()
+    if not np.isfinite(a.data).all():
+        raise ValueError("A has NaN or infinite entries")
+    return a
+
+
+def _transpose_index(a):
+    """For each stored entry (i, j) of a canonical CSC ``a``, the position of its entry (j, i); None when one
+    is missing (an unsymmetric pattern)."""
+    n = a.shape[0]
+    col = np.repeat(np.arange(n, dtype=np.int64), np.diff(a.indptr))
+    row = a.indices.astype(np.int64)
+    key = col * n + row  # ascending: canonical CSC is column-major with sorted rows
+    mirror_key = row * n + col
+    pos = np.minimum(np.searchsorted(key, mirror_key), key.shape[0] - 1)
+    return pos if np.array_equal(key[pos], mirror_key) else None
+
+
+def _unmatched_entry(a):
+    """Text naming one stored entry (i, j) of ``a`` without an entry (j, i)."""
+    coo = a.tocoo()
+    mirrored = set(zip(coo.col.tolist(), coo.row.tolist()))
+    i, j = next((i, j) for i, j in zip(coo.row.tolist(), coo.col.tolist()) if (i, j) not in mirrored)
+    return f"entry ({i}, {j}) is stored, ({j}, {i}) is not"
+
+
+def _check_symmetric(a, mirror):
+    diff = np.abs(a.data - a.data[mirror])
+    worst = int(np.argmax(diff)) if diff.size else 0
+    if diff.size and diff[worst] > SYMMETRY_RTOL * np.abs(a.data).max():
+        i = int(a.indices[worst])
+        j = int(np.searchsorted(a.indptr, worst, side="right") - 1)
+        raise ValueError(f"A is not symmetric: A[{i}, {j}] = {a.data[worst]:.17g} but "
+                         f"A[{j}, {i}] = {a.data[mirror[worst]]:.17g}")
+
+
+def _order(a, asked):
+    """(perm, name): ``perm[k]`` is the row of ``A`` placed at row ``k``."""
+    n = a.shape[0]
+    if asked == "mmd":
+        try:
+            lu = splu(a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+            # perm_c maps an old column to its new place; inverted, it lists the old index of each new one
+            return np.argsort(lu.perm_c).astype(np.int64), "mmd"
+        except RuntimeError:  # SuperLU's "factor is exactly singular" and kin: a non-SPD A fails later, named
+            asked = "rcm"
+    if asked == "rcm":
+        return np.asarray(reverse_cuthill_mckee(a.tocsr(), symmetric_mode=True), dtype=np.int64), "rcm"
+    return np.arange(n, dtype=np.int64), "natural"
