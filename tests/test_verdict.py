@@ -108,7 +108,7 @@ def test_wrote_line_names_the_folder_and_the_files_a_user_opens():
 #: too small for it (its measurements given: waist and hips; the bust estimated).
 BODIES = {"small body": ["--waist", "90", "--hips", "114"], "own body": [],
           "large body": ["--waist", "62", "--hips", "90"]}
-FRAMES = "40"
+FRAMES = "300"
 
 
 @pytest.fixture(scope="module")
