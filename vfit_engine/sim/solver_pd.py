@@ -185,6 +185,8 @@ class SolverPD:
         fw = np.concatenate([pw[free[pi] & ~free[pj]], pw[free[pj] & ~free[pi]]])
         order = np.argsort(fi, kind="stable")
         pin_ptr = np.concatenate([[0], np.cumsum(np.bincount(fi, minlength=n))]).astype(np.int64)
+        # which pair each pin coupling came from (PDSettings.band_weight re-weighs both)
+        pair_of = np.concatenate([np.flatnonzero(free[pi] & ~free[pj]), np.flatnonzero(free[pj] & ~free[pi])])[order]
 
         def c(x, dtype=np.float64):
             return np.ascontiguousarray(x, dtype=dtype)
@@ -196,7 +198,41 @@ class SolverPD:
                   c(con.t_hi[ang]), c(a_w), c(s_i, i64), c(s_j, i64),
                   c(s_lo), c(s_hi), c(s_w), c(h_i, i64), c(h_k), c(h_rest), self._pins, pin_ptr,
                   c(fp[order], i64), c(fw[order]))
+        band = np.zeros(pw.size, dtype=bool)
+        band[:e_i.size] = e_lo < e_hi
+        self._pairs = dict(i=pi, j=pj, w=pw, band=band, lo=np.concatenate([e_lo, np.zeros(2 * ang.size)]),
+                           hi=np.concatenate([e_hi, np.zeros(2 * ang.size)]), both=both, base=np.where(
+                               free, mh2 + d_off, 1.0), free=free, pair_of=pair_of, active=None)
         return arrays, a
+
+    def _reweight(self, x):
+        """With ``PDSettings.band_weight < 1``: the bands in the matrix weighed by whether they act at ``x`` (a yarn
+        inside its free band has no stiffness; its full weight in the matrix holds the cloth where it is at each
+        iteration); the matrix refactored when that changes. The step's element weights and the pins' couplings
+        follow."""
+        share = float(self.settings.band_weight)
+        pr = self._pairs
+        if share >= 1.0 or not pr["band"].any():
+            return
+        i, j = pr["i"], pr["j"]
+        length = np.linalg.norm(x[j] - x[i], axis=1)
+        active = ~pr["band"] | (length <= pr["lo"] * 1.002) | (length >= pr["hi"] * 0.998)
+        if pr["active"] is not None and np.array_equal(active, pr["active"]):
+            return
+        pr["active"] = active
+        w = np.where(active, pr["w"], share * pr["w"])
+        n = self.model.particle_count
+        e_w = self._arrays[7]
+        e_w[:] = w[:e_w.size]
+        self._arrays[-1][:] = w[pr["pair_of"]]
+        free, both = pr["free"], pr["both"]
+        diag = np.where(free, pr["base"] + np.bincount(i, w, n) + np.bincount(j, w, n), 1.0)
+        self._diag0 = diag.copy()
+        a = sparse.csc_matrix((np.concatenate([-w[both], -w[both], diag + self._w_c]),
+                               (np.concatenate([i[both], j[both], np.arange(n)]),
+                                np.concatenate([j[both], i[both], np.arange(n)]))), shape=(n, n))
+        self._factor.refactor(a)
+        self.refactors += 1
 
     def matrix(self):
         """The global step's matrix at the last step prepared (scipy CSC, N/m): the vertices clear of the body at
@@ -212,6 +248,7 @@ class SolverPD:
         self._w_c = np.where(self._inv_mass > 0, self._w_lo, 0.0)
         self._touched[:] = False
         self._rho = self.settings.contact_rho * (self._mh2 + self._w_c)
+        self._pairs["active"] = None
         self._dt = dt
 
     @property
@@ -287,6 +324,7 @@ class SolverPD:
         advance_in_place(x, xp, self._inv_mass, self._zero_f, self._gravity, keep, dt * dt)
         move_pins(x, pin_idx, pin_from, pin_to, alpha)
         np.copyto(self._y, x)
+        self._reweight(x)
         n_c, queries = make_contacts(
             x, self._inv_mass, self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._grid, self.body is not None,
             float(c.reach), float(self.max_push), float(c.reuse), self._p_last, self._d_last, self._c_n, self._c_nq,

@@ -114,6 +114,10 @@ class PDSettings(VerletSettings):
     hinge_every : int
         The hinges' forces (and the other forces outside the matrix) are evaluated at every ``hinge_every``-th
         iteration, the iterations between keep them.
+    band_weight : float
+        The weight in the matrix of a band (a yarn edge, a bend limit) inside its free band at the step's start,
+        as a share of its stiffness (1: a constant matrix; below it the matrix is refactored when the set of acting
+        bands changes).
     bend_in_matrix : bool
         The bend limits and bend springs (second neighbours) as elements of the matrix (else as forces with a
         diagonal, :mod:`vfit_engine.kernels.pd`).
@@ -129,6 +133,7 @@ class PDSettings(VerletSettings):
     chebyshev_delay: int = 2
     contact_sweeps: int = 0
     bend_in_matrix: bool = True
+    band_weight: float = 0.3
 
 
 @dataclass(frozen=True)
