@@ -134,3 +134,17 @@ def test_the_girth_strain_is_the_stretch_along_the_tapes_line():
     # with an arm beside it, the cloth nearer the arm is left out of both lengths (here none of it)
     assert loop_strain(tris, rest, rest * 1.05, plane, torso, [circle(0.05, 100, (0.5, 0.0))])[0] == \
         pytest.approx(0.05, abs=1e-9)
+
+
+def test_a_loop_round_both_thighs_is_no_thigh_of_the_garment():
+    """A skirt's hem goes round both thighs: no row for either (a trouser leg round one thigh keeps its row)."""
+    from vfit_engine.fit.table import _round_together
+
+    t = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    circle = np.stack([np.cos(t), np.sin(t)], axis=1)
+    left, right = 0.08 * circle + [-0.1, 0.0], 0.08 * circle + [0.1, 0.0]
+    skirt = np.stack([0.25 * np.cos(t), 0.15 * np.sin(t)], axis=1)
+    leg = 0.1 * circle + [-0.1, 0.0]
+    assert _round_together([skirt], [True], np.array([-0.1, 0.0]), [right])
+    assert not _round_together([leg], [True], np.array([-0.1, 0.0]), [right])
+    assert not _round_together([skirt], [False], np.array([-0.1, 0.0]), [right])  # an open chain goes round nothing

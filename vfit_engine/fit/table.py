@@ -80,6 +80,22 @@ def _distance_to_loop(points, loop):
     return np.linalg.norm(points[:, None, :] - near, axis=2).min(axis=1)
 
 
+#: Limbs a garment fits only with a part of its own (a sleeve, a trouser leg): a loop that goes round the limb
+#: together with another body part (a skirt round both thighs) gives the limb no row.
+ALONE = ("upper arm", "thigh")
+
+
+def _round_together(loops, closed, centre, others):
+    """Whether a closed garment loop winds round ``centre`` and round the middle of one of the body's ``others``
+    loops too (a skirt's hem round both thighs)."""
+    middles = [o.mean(axis=0) for o in others if len(o)]
+    for loop, shut in zip(loops, closed if closed is not None else [True] * len(loops)):
+        if shut and len(loop) >= 3 and abs(winding_number(loop, centre)) > 0.5 and any(
+                abs(winding_number(loop, m)) > 0.5 for m in middles):
+            return True
+    return False
+
+
 def garment_girth(loops, centre, own, others=(), reach=np.inf, closed=None):
     """The tape round a garment's own loop round a body part, in the part's plane.
 
@@ -347,6 +363,8 @@ class FitTable:
         for name, side, plane, reach, body_girth, own, others in self.regions:
             reach = max(reach, 3.0 * body_girth / (2 * np.pi))
             loops, closed = plane.section(sections, pos)
+            if name in ALONE and _round_together(loops, closed, plane.centre_xz, others):
+                continue  # a skirt round both thighs: no garment part of this limb (a tailor gives it no row)
             tape = garment_girth(loops, plane.centre_xz, own, others, reach, closed)
             if tape is None:
                 continue  # the garment does not go round this region
