@@ -317,3 +317,37 @@ def test_spring_laplacian_matches_the_dense_sum():
                                naive_ldl.laplacian(15, pairs, w) + np.diag(diag), rtol=1e-14, atol=1e-14)
     assert np.all(lap.diagonal() >= 0) and (lap.tocsc()[14, 14] == 0)  # vertex 14 is in no spring
     assert lap.tocsc().indices[lap.indptr[14]:lap.indptr[15]].tolist() == [14]  # but its diagonal is stored
+
+
+def test_refactor_values_at_positions_is_a_fresh_factor():
+    """New values written through positions() and refactor_values() factor as a fresh SPDFactor of the matrix."""
+    from scipy.sparse.linalg import spsolve
+    from vfit_engine.sim.linear import SPDFactor
+
+    rng = np.random.default_rng(7)
+    n = 40
+    i = rng.integers(0, n, 120)
+    j = rng.integers(0, n, 120)
+    keep = i != j
+    i, j = i[keep], j[keep]
+
+    def matrix(w):
+        lap = sp.coo_matrix((np.concatenate([-w, -w]), (np.concatenate([i, j]), np.concatenate([j, i]))), (n, n))
+        d = -np.asarray(lap.sum(axis=1)).ravel() + 1.0
+        return (lap + sp.diags(d)).tocsc(), d
+
+    a, _ = matrix(rng.uniform(1, 2, i.size))
+    f = SPDFactor(a)
+    w2 = rng.uniform(0.1, 5, i.size)
+    a2, d2 = matrix(w2)
+    data = np.zeros(f.nnz)
+    np.add.at(data, f.positions(i, j), -w2)
+    np.add.at(data, f.positions(j, i), -w2)
+    data[f.positions(np.arange(n), np.arange(n))] += d2
+    f.refactor_values(data)
+    b = rng.normal(size=(n, 3))
+    np.testing.assert_allclose(f.solve(b), spsolve(a2, b), rtol=1e-10, atol=1e-12)
+    present = set(zip(i.tolist(), j.tolist())) | set(zip(j.tolist(), i.tolist()))
+    absent = next((r, c) for r in range(n) for c in range(n) if r != c and (r, c) not in present)
+    with pytest.raises(ValueError):
+        f.positions([absent[0]], [absent[1]])

@@ -131,6 +131,28 @@ class SPDFactor:
         self._factor(a.data)
         return changed
 
+    def positions(self, rows, cols):
+        """(k,) int64: where the entries (``rows``, ``cols``) lie in the matrix's stored values (for
+        :meth:`refactor_values`); ValueError for an entry outside its pattern."""
+        indptr, indices = self._pattern
+        n = self.n
+        keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr)) * n + indices
+        want = np.asarray(cols, dtype=np.int64) * n + np.asarray(rows, dtype=np.int64)
+        at = np.searchsorted(keys, want)
+        if np.any(at >= keys.size) or np.any(keys[np.minimum(at, keys.size - 1)] != want):
+            raise ValueError("an entry outside the matrix's pattern")
+        return at
+
+    def refactor_values(self, data):
+        """Factor new values ``data`` (the stored values, in the order :meth:`positions` indexes) of the same
+        pattern, with no checks of symmetry: for a solver that builds them from its own symmetric elements."""
+        data = np.ascontiguousarray(data, dtype=np.float64)
+        if data.shape != self._data.shape or not np.all(np.isfinite(data)):
+            raise ValueError(f"the values must be {self._data.size} finite numbers")
+        self._valid = False
+        self._data = data
+        self._factor(data)
+
     def refactor_diagonal(self, diagonal):
         """Factor the last matrix with a new ``diagonal`` (n,) float64 and its other entries as they were: no
         checks of the pattern or the symmetry, for a solver that changes per-vertex weights every step.
@@ -184,6 +206,11 @@ class SPDFactor:
     def n(self):
         """Order of the matrix."""
         return int(self._d.shape[0])
+
+    @property
+    def nnz(self):
+        """Stored values of the matrix (its pattern's entries)."""
+        return int(self._data.size)
 
     @property
     def nnz_l(self):
