@@ -7,6 +7,7 @@ import pytest
 from scipy.sparse.linalg import spsolve
 
 import naive_pd
+from test_sim_solver import _free_particles
 from vfit_engine.kernels.pd import chebyshev, contact_forces, pd_rhs
 from vfit_engine.sim.bending import hinge_angles
 from vfit_engine.sim.model import Model
@@ -171,12 +172,6 @@ def test_chebyshev_takes_the_solution_before_delay_then_extrapolates():
 
 
 # -- the solver: analytic cases and invariants --------------------------------------------------------------
-
-def _free_particles(n=5, seed=0):
-    rng = np.random.default_rng(seed)
-    pos = rng.uniform(-1, 1, size=(n, 3))
-    return Model.create(pos, np.zeros((0, 2)), [], [], [], [], np.full(n, 0.1)), pos, rng
-
 
 def test_undamped_free_fall_is_exact():
     model, x0, rng = _free_particles()

@@ -99,6 +99,24 @@ def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, t_lo, t_hi, w):
         _scatter(b, k, j, w[c], vx, vy, vz)
 
 
+@njit(inline="always")
+def _depth(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, p, side):
+    """Contact point ``p``'s half-space ``side`` (0: its plane, 1: its crease's second one, if any):
+    ``(ok, nx, ny, nz, depth m, sum of its free vertices' squared weights)``; ``ok`` False when it has none."""
+    if side == 0:
+        nx, ny, nz, h = c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p]
+    elif c_nq2[p] == c_nq2[p]:
+        nx, ny, nz, h = c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p]
+    else:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0
+    px, py, pz = contact_point(x, pt_v, pt_b, p)
+    den = 0.0
+    for k in range(3):
+        if inv_mass[pt_v[p, k]] > 0.0:
+            den += pt_b[p, k] * pt_b[p, k]
+    return True, nx, ny, nz, h - (nx * px + ny * py + nz * pz), den
+
+
 @njit
 def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count):
     """Add ``w_c t`` (module docstring, contacts) of every free vertex into ``b``; ``gap`` (n, 3) m keeps each
@@ -110,21 +128,10 @@ def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_lis
     for m in range(n_c):
         p = c_list[m]
         for side in range(2):
-            if side == 0:
-                nx, ny, nz, h = c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p]
-            elif c_nq2[p] == c_nq2[p]:
-                nx, ny, nz, h = c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p]
-            else:
+            ok, nx, ny, nz, g, den = _depth(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, p, side)
+            if not ok:
                 break
-            px, py, pz = contact_point(x, pt_v, pt_b, p)
-            g = h - (nx * px + ny * py + nz * pz)
-            if g <= 0.0:
-                continue
-            den = 0.0
-            for k in range(3):
-                if inv_mass[pt_v[p, k]] > 0.0:
-                    den += pt_b[p, k] * pt_b[p, k]
-            if den <= 0.0:
+            if g <= 0.0 or den <= 0.0:
                 continue
             for k in range(3):
                 v = pt_v[p, k]
@@ -164,18 +171,9 @@ def contact_forces(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list,
     for m in range(n_c):
         p = c_list[m]
         for side in range(2):
-            if side == 0:
-                nx, ny, nz, h = c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p]
-            elif c_nq2[p] == c_nq2[p]:
-                nx, ny, nz, h = c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p]
-            else:
+            ok, nx, ny, nz, g, den = _depth(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, p, side)
+            if not ok:
                 break
-            px, py, pz = contact_point(x, pt_v, pt_b, p)
-            g = h - (nx * px + ny * py + nz * pz)
-            den = 0.0
-            for k in range(3):
-                if inv_mass[pt_v[p, k]] > 0.0:
-                    den += pt_b[p, k] * pt_b[p, k]
             if den <= 0.0:
                 continue
             for k in range(3):
