@@ -33,8 +33,6 @@ move to ``b``: ``b_i += w_ip x_p`` (``pin_ptr``, ``pin_nbr``, ``pin_w`` in CSR f
 """
 import math
 
-import numpy as np
-
 from vfit_engine._jit import njit
 from vfit_engine.kernels.bending import add_hinge_forces
 from vfit_engine.kernels.contact_make import contact_point
@@ -205,24 +203,6 @@ def contact_forces(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list,
         else:
             continue
         lam[i] = max(lam[i] + rho[i] * g, 0.0)
-
-
-@njit
-def contact_vertices(inv_mass, pt_v, pt_b, c_list, n_c, touched):
-    """``touched`` (n,) bool: the free vertices of the ``n_c`` contact points listed in ``c_list`` (their weight
-    in the matrix is the contacts' strong one this step); returns how many changed from what it held."""
-    new = np.zeros(touched.shape[0], dtype=np.bool_)
-    for m in range(n_c):
-        p = c_list[m]
-        for k in range(3):
-            if pt_b[p, k] > 0.0 and inv_mass[pt_v[p, k]] > 0.0:
-                new[pt_v[p, k]] = True
-    changed = 0
-    for i in range(touched.shape[0]):
-        if new[i] != touched[i]:
-            changed += 1
-            touched[i] = new[i]
-    return changed
 
 
 @njit

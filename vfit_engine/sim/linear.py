@@ -153,24 +153,6 @@ class SPDFactor:
         self._data = data
         self._factor(data)
 
-    def refactor_diagonal(self, diagonal):
-        """Factor the last matrix with a new ``diagonal`` (n,) float64 and its other entries as they were: no
-        checks of the pattern or the symmetry, for a solver that changes per-vertex weights every step.
-
-        Raises
-        ------
-        ValueError
-            A non-finite diagonal, or a matrix no longer positive definite (as :meth:`refactor`).
-        """
-        diagonal = np.asarray(diagonal, dtype=np.float64)
-        if diagonal.shape != (self.n,) or not np.all(np.isfinite(diagonal)):
-            raise ValueError(f"the diagonal must be {self.n} finite numbers")
-        if np.any(self._diag_pos < 0):
-            raise ValueError(f"A has no entry at ({int(np.argmin(self._diag_pos))}, same) of its diagonal")
-        self._valid = False
-        self._data[self._diag_pos] = diagonal
-        self._factor(self._data)
-
     def solve(self, B):
         """``X = A^-1 B``.
 
@@ -262,11 +244,6 @@ class SPDFactor:
         self._y = np.zeros(n)
         self._mirror = mirror
         self._pattern = (a.indptr.copy(), a.indices.copy())
-        # where each diagonal entry lies in A's data (-1: none; refactor_diagonal needs them all)
-        cols = np.repeat(np.arange(n), np.diff(a.indptr))
-        self._diag_pos = np.full(n, -1, dtype=np.int64)
-        on = a.indices == cols
-        self._diag_pos[cols[on]] = np.flatnonzero(on)
 
     def _factor(self, data):
         np.take(data, self._c_index, out=self._cx)

@@ -28,7 +28,7 @@ from vfit_engine.collide.body_mesh import empty_grid
 from vfit_engine.kernels.contact_make import make_contacts
 from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
-from vfit_engine.kernels.pd import chebyshev, contact_forces, contact_vertices, pd_rhs, soft_push
+from vfit_engine.kernels.pd import chebyshev, contact_forces, pd_rhs, soft_push
 from vfit_engine.kernels.sparse_ldl import ldl_solve3
 from vfit_engine.sim.bending import hinge_gradient_norms
 from vfit_engine.sim.constraints import KIND_ANGLE, KIND_BEND, build_constraints, stretch_rigidity
@@ -71,7 +71,6 @@ class SolverPD:
         self._gap, self._push, self._zero_f = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
         self._count = np.zeros(n)
         self._f_lag = np.zeros((n, 3))
-        self._touched = np.zeros(n, dtype=np.bool_)
         self._work = np.zeros((n, 3))
         self._lam, self._nrm, self._plane = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3))
         self._acc_g, self._acc_n, self._acc_w = np.zeros(n), np.zeros((n, 3)), np.zeros(n)
@@ -166,13 +165,12 @@ class SolverPD:
             d_off += np.bincount(h_i.ravel(), (h_k[:, None] * g * g.sum(axis=1, keepdims=True)).ravel(), n)
         else:
             h_i, h_k, h_rest = np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0)
-        self._w_lo, self._w_hi = st.contact_weight * k_typ, st.contact_weight_touch * k_typ
+        self._w_lo = st.contact_weight * k_typ
         # the matrix: mass, diagonal of the forces outside it, contact weight, and the pair elements
         pi = np.concatenate([e_i, con.corner[ang], con.corner[ang]])
         pj = np.concatenate([e_j, con.i[ang], con.j[ang]])
         pw = np.concatenate([e_w, a_w, a_w])
         diag = np.where(free, mh2 + d_off + np.bincount(pi, pw, n) + np.bincount(pj, pw, n), 1.0)
-        self._diag0 = diag.copy()
         diag[free] += self._w_lo
         both = free[pi] & free[pj]
         rows = np.concatenate([pi[both], pj[both], np.arange(n)])
@@ -227,7 +225,6 @@ class SolverPD:
         self._arrays[-1][:] = w[pr["pair_of"]]
         free, both = pr["free"], pr["both"]
         diag = np.where(free, pr["base"] + np.bincount(i, w, n) + np.bincount(j, w, n), 1.0)
-        self._diag0 = diag.copy()
         if pr.get("at") is None:  # where each element's entries lie in the factor's values (a fixed pattern)
             pr["at"] = (self._factor.positions(i[both], j[both]), self._factor.positions(j[both], i[both]),
                         self._factor.positions(np.arange(n), np.arange(n)))
@@ -253,7 +250,6 @@ class SolverPD:
         self._matrix = a
         self._factor = SPDFactor(a)
         self._w_c = np.where(self._inv_mass > 0, self._w_lo, 0.0)
-        self._touched[:] = False
         self._rho = self.settings.contact_rho * (self._mh2 + self._w_c)
         self._pairs["active"] = None
         self._pairs["at"] = None
@@ -339,12 +335,6 @@ class SolverPD:
             self._c_h, self._c_list, self._c_n2, self._c_nq2, self._c_h2, 0, self.points.count, self._body_vel,
             self._sphere_vel, self._c_u, self._body_sag, self._sag_max, self._ground)
         self.contact_queries += queries
-        if self._w_hi != self._w_lo and contact_vertices(self._inv_mass, self._pt_v, self._pt_b, self._c_list, n_c,
-                                                         self._touched):
-            # the vertices touching the body hold to it strongly; the others weakly (PDSettings.contact_weight)
-            self._w_c[:] = np.where(self._touched, self._w_hi, np.where(self._inv_mass > 0, self._w_lo, 0.0))
-            self._factor.refactor_diagonal(self._diag0 + self._w_c)
-            self.refactors += 1
         lp, li, lx, d, perm = self._factor.arrays
         np.copyto(self._xprev, x)
         omega = 1.0

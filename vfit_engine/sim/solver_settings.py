@@ -89,14 +89,11 @@ class PDSettings(VerletSettings):
 
     Attributes
     ----------
-    contact_weight, contact_weight_touch : float
-        The contacts' weight in the matrix, as a share of the fabric's typical stretch stiffness of an edge, of a
-        vertex clear of the body and of one touching it (one of its contact points within reach, its diagonal
-        refactored when the set changes): the cloth's elements feel the body within the step, and spread the
-        stretch it forces over the cloth (a weak weight on touching vertices let a top sink centimetres into the
-        bust within the step, and the exact projection after it stretched the edges there by 32 %); a clear
-        vertex's weight is a pull towards where it is, and a strong one locks the cloth (0.3 held a sphere's
-        drape at 28 % stretch at 5 iterations).
+    contact_weight : float
+        The contacts' constant weight in the matrix on every free vertex, as a share of the fabric's typical
+        stretch stiffness of an edge: a pull towards where the vertex is, moved by the push its contact points ask
+        for. Weak: a strong one locks the cloth (0.3 held a sphere's drape at 28 % stretch at 5 iterations; 1.0 on
+        the vertices touching the body alone, 15 %); the contact forces (``contact_rho``) hold the cloth out.
     contact_rho : float
         The contact forces' growth per unit depth at each iteration (Uzawa's step), as a share of the vertex's
         diagonal in the matrix; 0: no contact forces (the weights alone).
@@ -126,7 +123,6 @@ class PDSettings(VerletSettings):
     substeps: int = 1
     iterations: int = 10
     contact_weight: float = 0.01
-    contact_weight_touch: float = 0.01
     contact_rho: float = 1.0
     angle_weight: float = 0.05
     chebyshev_rho: float = 0.0
