@@ -4,17 +4,17 @@
 as :class:`~vfit_engine.sim.solver_verlet.SolverVerlet` does, with the same constraints
 (:mod:`vfit_engine.sim.constraints`: banded stretch, bend limits, corner angle limits, shear springs), hinges,
 contacts, pins and friction, but solved by projective dynamics (:mod:`vfit_engine.kernels.pd`): every step
-predicts the inertial motion, makes the contacts once, then ``iterations`` times projects every element onto
-its allowed set (the local step) and solves one constant sparse SPD system for all vertices at once (the global
-step, factored once a drape, :mod:`vfit_engine.sim.linear`), Chebyshev-accelerated (Wang 2015); the contact
-points are then projected out of the body exactly, and the contact velocity is taken as the Verlet solver takes
-it (:func:`vfit_engine.kernels.contact_solve.contact_velocity`). A correction no longer travels one edge a sweep:
-one solve carries it over the garment, so a handful of iterations hold a stiff fabric where Gauss-Seidel needed
-14 sweeps in each of 8 substeps.
+predicts the inertial motion, makes the contacts once, then ``iterations`` times updates the contact forces
+(Uzawa), projects every element onto its allowed set (the local step) and solves one sparse SPD system for all
+vertices at once (the global step, :mod:`vfit_engine.sim.linear`: factored once a drape, its bands' weights
+refactored as the set of bands that act changes, ``PDSettings.band_weight``); the contact velocity is then taken
+as the Verlet solver takes it (:func:`vfit_engine.kernels.contact_solve.contact_velocity`). A correction no longer
+travels one edge a sweep: one solve carries it over the garment. Not yet the product's solver: where it stands,
+what was tried and what is next are in ``docs/solver.md``.
 
-What lies where: the stretch bands, shear diagonals and corner angles (on the polygons' own edges) are in the
-matrix; the bend limits, bend springs and hinges (their pairs would fill the factor) act as forces evaluated at
-the iterate, with a diagonal that bounds their stiffness (:mod:`vfit_engine.kernels.pd`).
+What lies where: the stretch bands, shear diagonals, bend limits and bend springs and the corner angles (on the
+polygons' own edges) are in the matrix; the hinges (four vertices: they would fill the factor) act as forces
+evaluated at the iterate, with a diagonal that bounds their stiffness (:mod:`vfit_engine.kernels.pd`).
 """
 from __future__ import annotations
 
