@@ -19,7 +19,9 @@ opening, its draped length), ``ease_cm`` (their difference: a garment stretched 
 ease of 2 pi times its gap to the skin, 1-2 cm for the drape's few millimetres), ``girth_strain`` (how
 far the cloth round the region is stretched along that tape's line: its draped length over its length as
 made, step by step across the triangles the plane cuts, over the steps under tension -- cloth bunched
-into a fold at a seam carries nothing round the body --, :func:`loop_strain`; where the line has no step,
+into a fold at a seam carries nothing round the body --, :func:`loop_strain`, and no more than
+``max_strain``, the yarns' there (the line crosses sheared triangles, whose shear it would read as stretch);
+where the line has no step,
 sum l / sum l0 - 1 over the garment's yarn edges that run round the region within ``BAND`` of the plane;
 for an opening, its draped length over its length as given), ``garment_made_cm`` (the garment's own
 girth there as made: ``garment_girth_cm`` times the line's whole length as made over its draped length;

@@ -46,9 +46,8 @@ garment the body forces wider): Gauss-Seidel settles where each vertex's pulls b
 sum relax_e C_e u_e = 0, so relax proportional to stiffness shares the stretch as an elastic sheet
 would, instead of short stiff edges taking it all.
 
-A contact point p = sum_k b_k x_k with gap g > 0 below its half-space moves its vertices by
-``dx_k = w_k b_k g n / sum_j w_j b_j^2`` (the point-triangle constraint of PBD): a triangle that
-spans a body bump between its vertices is pushed out as a whole.
+A contact point below its half-space is pushed out over its vertices as :mod:`.contact_solve` says (a triangle
+that spans a body bump between its vertices is pushed out as a whole).
 
 Contact generation skips points proven clear: the signed distance is 1-Lipschitz, so a point whose
 last query found ``d_last`` (at ``p_last``) is still at least ``d_last - |p - p_last|`` from the

@@ -239,8 +239,9 @@ class SolverPD:
         self.refactors += 1
 
     def matrix(self):
-        """The global step's matrix at the last step prepared (scipy CSC, N/m): the vertices clear of the body at
-        their weak contact weight, pinned rows the identity."""
+        """The global step's matrix as built for the last step size prepared (scipy CSC, N/m): every band at its
+        full weight (``PDSettings.band_weight`` re-weighs the factor as the drape goes), the contact weight on every
+        free vertex, pinned rows the identity."""
         return self._matrix.copy()
 
     def _prepare(self, dt):
@@ -303,9 +304,7 @@ class SolverPD:
         if state.pos.shape != (m.particle_count, 3):
             raise ValueError("state does not belong to this model")
         self._prepare(dt)
-        if dt != state.dt:
-            state.pos_prev[:] = state.pos - (state.pos - state.pos_prev) * (dt / state.dt)
-            state.dt = dt
+        state.change_step(dt)
         pinned = state.pin_target is not None and m.pin_count
         if pinned:
             if state.pin_target.shape != (m.pin_count, 3):

@@ -448,10 +448,7 @@ class SolverVerlet:
         if state.pos.shape != (m.particle_count, 3):
             raise ValueError("state does not belong to this model")
         self._prepare(dt)
-        if dt != state.dt:
-            # keep the velocity when the step changes: pos_prev is one *new* step back
-            state.pos_prev[:] = state.pos - (state.pos - state.pos_prev) * (dt / state.dt)
-            state.dt = dt
+        state.change_step(dt)
         if state.pin_target is not None and m.pin_count:
             if state.pin_target.shape != (m.pin_count, 3):
                 raise ValueError(f"pin_target must have shape ({m.pin_count}, 3)")

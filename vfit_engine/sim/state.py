@@ -64,6 +64,12 @@ class State:
         """(n, 3) float64, m/s: the backward difference ``(pos - pos_prev) / dt``."""
         return (self.pos - self.pos_prev) / self.dt
 
+    def change_step(self, dt):
+        """Take steps of ``dt`` (s) from now on, keeping the velocity: ``pos_prev`` becomes one *new* step back."""
+        if dt != self.dt:
+            self.pos_prev[:] = self.pos - (self.pos - self.pos_prev) * (dt / self.dt)
+            self.dt = dt
+
     def set_pin_target(self, target):
         """Set where pinned particles go next, (p, 3) m; None keeps them still."""
         self.pin_target = None if target is None else np.array(target, dtype=np.float64, order="C").reshape(-1, 3)
