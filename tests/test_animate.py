@@ -295,3 +295,30 @@ def test_sitting_skirt_keeps_out_of_the_hand_and_the_lap(body_model):
     assert max(w[1] for w in worst) <= 2.0, max(worst, key=lambda w: w[1])
     assert max(w[2] for w in worst) <= 1.0
     assert max(w[3] for w in worst) <= 0.08, max(worst, key=lambda w: w[3])
+
+
+def test_preview_gif_draws_strain_on_the_still_previews_scale(monkeypatch, tmp_path):
+    """``preview.gif`` colours the strain as ``preview.png`` does: the map, range and wearable-stretch mark the fit
+    outputs give for the garment's fabric (one home: :func:`vfit_engine.fit.outputs.map_range`), not the old
+    -15 .. +15 % scale."""
+    from types import SimpleNamespace
+
+    from vfit_engine.animate import outputs
+    from vfit_engine.fit.outputs import PICTURE_MAPS, map_range
+    from vfit_engine.io.meshdata import MeshData
+    from vfit_engine.sim.materials import get_material
+    from vfit_engine.sim.springs import grid_polygons
+
+    pos, fv, fo = grid_polygons(4, 3, 0.3, 0.2)
+    seen = {}
+    monkeypatch.setattr(outputs, "write_gif", lambda path, *args, **kw: seen.update(kw))
+    for name in ("cotton", "jersey"):
+        material = get_material(name)
+        setup = SimpleNamespace(garment=SimpleNamespace(mesh=MeshData(pos, fo, fv)), material=material)
+        cloth = np.stack([pos, pos * [1.05, 1.0, 1.0]])
+        outputs.write_preview_gif(tmp_path / "p.gif", setup, SimpleNamespace(body_tris=None), [None, None], cloth,
+                                  30.0)
+        vmin, vmax, marks = map_range("strain", material)
+        assert (seen["vmin"], seen["vmax"], seen["marks"]) == (vmin, vmax, marks) and marks
+        assert (seen["cmap"], seen["label"], seen["unit"]) == tuple(PICTURE_MAPS["strain"][k]
+                                                                    for k in ("cmap", "label", "unit"))

@@ -439,6 +439,24 @@ def test_gif_values_per_frame_and_garment_alone(tmp_path):
     assert len(_gif_frames(out)[1]) == 3
 
 
+def test_gif_bar_marks_the_wearable_stretch_like_the_still_preview():
+    """The GIF's colour bar takes marks as the still preview's does: a dark line across the bar at the mark's
+    value (the fabric's wearable stretch), where the bar without it is coloured."""
+    from vfit_engine.animation import render_frames
+
+    verts = np.array([[0, 0, 0], [0.3, 0, 0], [0, 0.5, 0]], dtype=float)
+    values = np.array([[0.0, 0.1, 0.2], [0.0, 0.1, 0.2]])
+    kw = dict(cmap="stretch", vmin=0.0, vmax=0.2, label="yarn strain", unit="%", view="front", size=(600, 400))
+    mark = ((0.1, "10 % wearable"),)
+    marked = render_frames(None, None, [verts, verts], [[0, 1, 2]], values, marks=mark, **kw)[1]
+    plain = render_frames(None, None, [verts, verts], [[0, 1, 2]], values, **kw)[1]
+    for picture, marks, inked in ((marked, mark, True), (plain, (), False)):
+        bar = preview_text.bar_texts("yarn strain", "%", 0.0, 0.2, values, marks=marks)
+        x0, y0, x1, y1 = preview_text.layout(600, 400, 1, None, bar, footer=True)["bar_box"]
+        row = picture[round(y0 + 0.5 * (y1 - y0)), x0:x1].astype(int)
+        assert np.all(row.max(axis=1) < 80) == inked and np.all(np.ptp(row, axis=1) > 100) != inked
+
+
 def _gif_args():
     body_v, body_t = _cylinder(0.15, 0.0, 1.6, 16, 5)
     frames, cloth_t = _falling_cloth(3)

@@ -34,7 +34,7 @@ _PROGRESS_RGB, _TRACK_RGB = (90, 90, 90), (225, 225, 225)
 
 def write_gif(path, body_verts, body_tris, frames, garment_tris, values=None, *, fps=12,
               size=(600, 600), view="front", label="strain", unit="%", vmin=None, vmax=None,
-              cmap="strain", title=None, labels=None, zoom=None, shading="gouraud", body_frames=None):
+              cmap="strain", title=None, labels=None, zoom=None, shading="gouraud", body_frames=None, marks=()):
     """Write an animated GIF (looping forever) of the garment's frames on the body.
 
     Parameters
@@ -52,7 +52,7 @@ def write_gif(path, body_verts, body_tris, frames, garment_tris, values=None, *,
         A quantity per garment vertex, the same in every frame or one row per frame; coloured
         through ``cmap`` over one range for all frames, with a colour bar (see
         :func:`vfit_engine.preview.render_views` for ``label``, ``unit``, ``vmin``, ``vmax``,
-        ``cmap``, ``zoom`` and ``shading``). ``None``: plain cloth colour, no bar.
+        ``cmap``, ``zoom``, ``shading`` and ``marks``). ``None``: plain cloth colour, no bar.
     body_frames : sequence of (n, 3) float, metres, or None
         The body in every frame, when it moves (``body_verts`` is then its first frame's).
     fps : float
@@ -82,7 +82,7 @@ def write_gif(path, body_verts, body_tris, frames, garment_tris, values=None, *,
     fps = _check_fps(fps)
     pictures = render_frames(body_verts, body_tris, frames, garment_tris, values, size=size, view=view,
                              label=label, unit=unit, vmin=vmin, vmax=vmax, cmap=cmap, title=title,
-                             labels=labels, zoom=zoom, shading=shading, body_frames=body_frames)
+                             labels=labels, zoom=zoom, shading=shading, body_frames=body_frames, marks=marks)
     first = pictures[0]
     palette = _palette([first, pictures[-1]], pictures.bar)
     rest = (_quantize(pictures[k], palette) for k in range(1, len(pictures)))  # drawn as written
@@ -97,7 +97,7 @@ def write_gif(path, body_verts, body_tris, frames, garment_tris, values=None, *,
 
 def render_frames(body_verts, body_tris, frames, garment_tris, values=None, *, size=(600, 600),
                   view="front", label="strain", unit="%", vmin=None, vmax=None, cmap="strain",
-                  title=None, labels=None, zoom=None, shading="gouraud", body_frames=None):
+                  title=None, labels=None, zoom=None, shading="gouraud", body_frames=None, marks=()):
     """The pictures of :func:`write_gif`: a sequence of (height, width, 3) uint8 sRGB arrays.
 
     Everything is checked at once; a picture is drawn when it is indexed (in any order), so a long
@@ -116,7 +116,7 @@ def render_frames(body_verts, body_tris, frames, garment_tris, values=None, *, s
         if any(b.shape != scene.meshes[0][0].shape for b in bodies):
             raise InputError("body_frames must all have the body's vertex count")
     rgb, bar, lo, hi = preview.garment_colours(values, positions[0].shape[0], cmap, vmin, vmax, label,
-                                               unit, n_frames=len(positions))
+                                               unit, n_frames=len(positions), marks=marks)
     lay = preview_text.layout(scene.width, scene.height, len(scene.rotations), title, bar, footer=True)
     framing = preview.fit_framing([v for v, _ in scene.meshes[:-1]] + (bodies or []) + positions,
                                   scene.rotations, zoom, lay["panel_w"], lay["panel_h"])

@@ -23,6 +23,7 @@ from vfit_engine.animation import write_gif
 from vfit_engine.body.bodyio import body_mesh
 from vfit_engine.body.model import N_BODY
 from vfit_engine.drape.metrics import vertex_strain
+from vfit_engine.fit.outputs import PICTURE_MAPS, map_range
 from vfit_engine.io.gltf import ScenePart, write_animation_glb
 
 #: The quality bars of every frame (module docstring).
@@ -114,12 +115,16 @@ def write_animation(path, setup, model, bodies, cloth, fps):
 
 
 def write_preview_gif(path, setup, model, bodies, cloth, fps):
-    """``preview.gif``: the garment (coloured by yarn strain) on the moving body, from the front and the side,
-    at most :data:`GIF_FRAMES` frames."""
+    """``preview.gif``: the garment coloured by yarn strain on the moving body, from the front and the side, at
+    most :data:`GIF_FRAMES` frames; the strain on the still preview's scale and colour bar (0 to twice the
+    fabric's wearable stretch, marked: :func:`vfit_engine.fit.outputs.map_range`), so the two pictures read alike."""
     pick = np.unique(np.linspace(0, len(cloth) - 1, min(len(cloth), GIF_FRAMES)).round().astype(int))
     mesh = setup.garment.mesh
     strain = np.stack([vertex_strain(mesh, cloth[k]) for k in pick])
     labels = [f"{k / fps:.2f} s" for k in pick]
+    spec = PICTURE_MAPS["strain"]
+    vmin, vmax, marks = map_range("strain", setup.material)
     return write_gif(path, bodies[pick[0]], model.body_tris, [cloth[k] for k in pick], mesh.triangles(),
                      strain, fps=min(max(fps * len(pick) / len(cloth), 1.0), 50.0), view=("front", "side"),
-                     size=(800, 600), labels=labels, body_frames=[bodies[k] for k in pick])
+                     size=(800, 600), labels=labels, body_frames=[bodies[k] for k in pick], label=spec["label"],
+                     unit=spec["unit"], cmap=spec["cmap"], vmin=vmin, vmax=vmax, marks=marks)
