@@ -1,6 +1,7 @@
 """How it fits: the fit maps against analytic cases, the fit table and its summary, fit.ply, scene.glb and the
 preview through ``vfit drape``."""
 import json
+import re
 import struct
 from types import SimpleNamespace
 
@@ -200,6 +201,55 @@ def test_sleeve_hems_of_the_female_suit_are_tight(tmp_path):
     assert {t["region"] for t in report["too_tight"]} >= {"left sleeve hem", "right sleeve hem"}
     assert "the body needs >= " in report["fit_summary"]
     assert {row["region"]: row["verdict"] for row in report["fit"]}["bust"] not in VERDICTS[:2]
+
+
+def test_a_region_the_garment_goes_round_with_room_is_not_stretched_by_it():
+    """The stretch a region puts on the cloth round it: the line's, where the garment as made is shorter round it
+    than the body plus 2 pi times the drape's skin (the body stretches it); no more than 0 where it is longer (it
+    goes round without stretching: other cloth stretches that line), whatever the line reads."""
+    from vfit_engine.drape.settings import DrapeSettings
+    from vfit_engine.fit.table import region_stretch
+
+    room = 2 * np.pi * DrapeSettings().contact.skin
+    assert region_stretch(0.05, 1.00, 1.02) == 0.05  # made smaller than the body
+    assert region_stretch(0.05, 1.00 + room - 1e-6, 1.00) == 0.05  # less room than the cloth's gap
+    assert region_stretch(0.05, 1.00 + room, 1.00) == 0.0
+    assert region_stretch(0.037, 0.539, 0.400) == 0.0  # the collar of the issue: 14 cm longer than the neck
+    assert region_stretch(-0.02, 1.10, 1.00) == -0.02  # bunched stays bunched
+    assert region_stretch(0.05, 1.03, 1.00, gap=0.005) == 0.05  # a wider gap leaves 3 cm no room
+
+
+@pytest.fixture(scope="module")
+def suit02_customer(tmp_path_factory):
+    """``vfit drape male_casualsuit02.obj --gender male --waist 84 --hips 100`` (the README's fit table)."""
+    if not GARMENTS.is_dir():
+        pytest.skip("../shared/assets/garments (MakeHuman clothes) absent")
+    out = tmp_path_factory.mktemp("fit") / "o"
+    r = CliRunner().invoke(cli, ["drape", str(GARMENTS / "male_casualsuit02" / "male_casualsuit02.obj"),
+                                 "--gender", "male", "--waist", "84", "--hips", "100", "-o", str(out), "--every", "0"])
+    assert r.exit_code == 0, r.output
+    return json.loads((out / "report.json").read_text()), r.output
+
+
+def test_the_neck_with_15_cm_of_ease_is_not_tight(suit02_customer):
+    """Issue 33: the shirt's neck row read "tight" (3.7 %) with +15 cm of ease: its line in the neck's plane is the
+    collar standing clear of the neck, held open by the shoulders, 14 cm longer as made than the neck. The neck
+    does not stretch it: not tight; the chest, made smaller than his (estimated) chest, is stretched by it; every
+    body region whose garment as made goes round it with room reads no stretch."""
+    from vfit_engine.drape.settings import DrapeSettings
+
+    report, output = suit02_customer
+    rows = {r["region"]: r for r in report["fit"]}
+    neck = rows["neck"]
+    assert neck["ease_cm"] > 10 and neck["garment_made_cm"] - neck["body_girth_cm"] > 10
+    assert neck["girth_strain"] <= 0.0 and neck["verdict"] not in ("tight", "too tight to wear")
+    assert not re.search(r"\bneck\b", report["fit_summary"].split("fitted")[0])  # not among the tight ones
+    chest = rows["chest"]
+    assert chest["garment_made_cm"] < chest["body_girth_cm"] and chest["verdict"] == "tight"
+    room = 100 * 2 * np.pi * DrapeSettings().contact.skin
+    for r in report["fit"]:
+        if r.get("garment_made_cm") is not None and r["garment_made_cm"] - r["body_girth_cm"] >= room:
+            assert r["girth_strain"] <= 0.0 and r["verdict"] not in ("tight", "too tight to wear"), r
 
 
 @pytest.mark.parametrize("name, value, other", [("ease", 50.0, 0.0), ("pressure", 0.0, 4.0), ("strain", 0.15, 0.0)])

@@ -33,6 +33,13 @@ is taken just under the armpits, and above them a shirt's edges run round its ar
 estimated it from the others) and ``verdict``: too tight to wear, tight, fitted, loose or too loose, by the
 one rule of :mod:`.verdict` (which every other output reads).
 
+A body region's ``girth_strain`` is the stretch the region puts on the cloth round it (:func:`region_stretch`):
+where the garment as made is longer round the region than the body's girth plus 2 pi times the gap the drape
+keeps between cloth and skin, the garment goes round the region without stretching, and what stretches its
+line there is other cloth (a shirt's collar held open by the shoulders round a neck it stands clear of: 3.7 %
+with 15 cm of ease; a trouser leg pulled from the seat round a thigh it is 3 cm bigger than): it reads no
+more than 0. The yarns' peaks stay in ``max_strain``.
+
 ``key`` marks the regions that decide a size (bust/chest, waist and hips). A girth the customer gave that
 the garment does not go round has its row all the same (verdict ``not covered``, no garment figures).
 """
@@ -43,6 +50,7 @@ from scipy.spatial import ConvexHull, cKDTree
 
 from vfit_engine.body.measure import Measurer
 from vfit_engine.body.segment import PARTS
+from vfit_engine.drape.settings import DrapeSettings
 from vfit_engine.fit.maps import fit_maps
 from vfit_engine.fit.verdict import uncovered_row, verdict
 from vfit_engine.garment.openings import BodyLoops, check_openings
@@ -390,8 +398,8 @@ class FitTable:
             # no more than the yarns there are stretched: a line cut across sheared triangles reads their shear
             # as stretch (a skirt hanging 47 cm clear of a thigh read 3.0 % round it, its yarns at most 1.5 %)
             hoop_strain = min(hoop[0], top) if hoop is not None and long_.any() else None
-            row = _row(name, side, body_girth, girth, hoop_strain if hoop_strain is not None else ratio - 1.0, top,
-                       float(maps["pressure_kpa"][verts].max()), limit)
+            stretch = region_stretch(hoop_strain if hoop_strain is not None else ratio - 1.0, girth / ratio, body_girth)
+            row = _row(name, side, body_girth, girth, stretch, top, float(maps["pressure_kpa"][verts].max()), limit)
             row["garment_made_cm"] = round(100.0 * girth / ratio, 2)
             row["estimated"] = name in self.estimated
             out.append(row)
@@ -444,6 +452,29 @@ def _opening_name(part, piece, loop, chest_y):
     if np.mean(piece[:, 1] > y) > 0.5:
         return "hem", ""
     return ("neckline" if y > chest_y else "waistband"), ""
+
+
+def region_stretch(line_stretch, made_m, body_m, gap=None):
+    """The stretch a body region puts on the cloth round it (module docstring), fraction.
+
+    Parameters
+    ----------
+    line_stretch : float
+        How far the cloth along the region's tape line is stretched (:func:`loop_strain`), fraction.
+    made_m, body_m : float, m
+        The garment's girth there as made and the body's.
+    gap : float or None, m
+        The gap the drape keeps between cloth and skin; default the drape's contact skin
+        (``DrapeSettings().contact.skin``).
+
+    Returns
+    -------
+    float
+        ``line_stretch``, or no more than 0 where the garment as made goes round the body with that gap to spare
+        (``made_m - body_m >= 2 pi gap``): the body does not stretch it there.
+    """
+    gap = DrapeSettings().contact.skin if gap is None else float(gap)
+    return min(float(line_stretch), 0.0) if made_m - body_m >= 2.0 * np.pi * gap else float(line_stretch)
 
 
 def _row(name, side, body_m, garment_m, girth_strain, max_strain, pressure, limit, need=None):
