@@ -200,9 +200,9 @@ def fmt_table(rows: list, header: list) -> str:
 def fit_table_lines(rows):
     """The fit table (report.json's ``fit``) as people read it, one line per region: body and garment girth (draped,
     round the body), the garment's own girth there as made (its size; a size run's grow as graded), ease, the
-    stretch of the cloth round it and the verdict (vfit_engine.fit.verdict's rule); * marks the
-    regions that decide a size, "(estimated)" a girth the customer did not give, "-" a figure a region the
-    garment does not go round has not."""
+    stretch of the cloth round it and the verdict (vfit_engine.fit.verdict's rule); * marks the girths sizes are
+    labelled by (EN 13402: chest/bust, waist, hips), "(estimated)" a girth the customer did not give, "-" a figure
+    a region the garment does not go round has not."""
     from vfit_engine.fit.verdict import stretch
 
     def num(x, fmt):  # + 0.0: no "-0.0" for a figure that rounds to nothing

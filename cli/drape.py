@@ -444,6 +444,6 @@ def _fit_table(rows, material):
     """The fit table as people read it: one row per region, its verdict by the one rule (vfit_engine.fit.verdict)."""
     if not rows:
         return
-    click.echo(f"  fit per region (* decides a size; stretch of the cloth round it, {material.name} gives "
-               f"{100 * material.wearable_stretch:.0f} %):")
+    click.echo(f"  fit per region (* a girth sizes are labelled by; stretch of the cloth round it, {material.name} "
+               f"gives {100 * material.wearable_stretch:.0f} %):")
     click.echo("\n".join("    " + line for line in fit_table_lines(rows)))

@@ -44,14 +44,15 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
     centre is nearest its own body (it says which). Each size is draped at its
     own size on the customer's body, the sizes in parallel; it prints the fit
     of every size (region, body and garment girth, ease, the stretch of the
-    cloth round it, verdict; * marks the key regions, "estimated" a girth the
-    customer did not give) and the recommended size.
+    cloth round it, verdict; * marks the girths sizes are labelled by,
+    "estimated" a girth the customer did not give), which regions reject a
+    size too small, and the recommended size.
 
-    The rule: the smallest size with no tight verdict (tight or too tight to
-    wear) at a key region (chest/bust, waist, hips where the garment covers
-    them); a tight cuff or hem elsewhere does not change the size. If every
-    size is tight there, the largest, saying where it is tight. Exit 3 when no size could be judged
-    (every drape diverged or failed).
+    The rule: the smallest size whose every region is at least fitted: no
+    tight verdict (tight or too tight to wear) at any region of its table
+    (chest/bust, waist, hips, neck, upper arms, thighs, the openings). If
+    every size is tight somewhere, the largest, saying where it is tight.
+    Exit 3 when no size could be judged (every drape diverged or failed).
 
     \b
     Examples:
@@ -119,8 +120,10 @@ def _size(o):
 
 
 def _tables(res):
-    """The fit of every size, as people read it."""
-    own, c = res["garment_size"], res["customer"]
+    """The fit of every size, as people read it, and what rejected each size smaller than the one recommended."""
+    from vfit_engine.sizes import rejection
+
+    own, c, pick = res["garment_size"], res["customer"], res["recommended"]
     chest = "chest" if res["gender"] == "male" else "bust"
     est = set(res.get("customer_estimated") or ())
 
@@ -146,4 +149,7 @@ def _tables(res):
             continue
         click.echo("\n".join("  " + line for line in fit_table_lines(s["fit"])))
         click.echo(f"  {s['summary']}")
+        why = rejection(s)
+        if why and pick in SIZE_NAMES and SIZE_NAMES.index(s["size"]) < SIZE_NAMES.index(pick):
+            click.echo(f"  rejected {s['size']}: {why}")  # the rule passed over it: the regions that decided
     click.echo("")

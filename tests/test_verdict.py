@@ -192,8 +192,8 @@ def test_size_choice_and_batch_columns_read_the_rows_verdicts(skirts):
     names = dict(zip(("S", "M", "L"), BODIES))
     sizes = [dict(size=s, status="settled", fit=skirts[n][0]["fit"]) for s, n in names.items()]
     picked, reason = recommend(sizes)
-    tight_key = {s["size"] for s in sizes if any(r["key"] and r["verdict"] in VERDICTS[:2] for r in s["fit"])}
-    assert picked == next((s for s in ("S", "M", "L") if s not in tight_key), "L"), reason
+    tight = {s["size"] for s in sizes if any(r["verdict"] in VERDICTS[:2] for r in s["fit"])}
+    assert picked == next((s for s in ("S", "M", "L") if s not in tight), "L"), reason
     task = SimpleNamespace(id="t", garment="skirt.obj", garment_name="skirt", size=None, material="cotton",
                            body_label="b", body_key=lambda: "k", body={})
     for rep, _ in skirts.values():

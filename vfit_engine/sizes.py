@@ -26,11 +26,12 @@
    (:func:`vfit_engine.fit.table.fit_table`) says, per body region, too tight to wear, tight, fitted,
    loose or too loose.
    The sizes run in parallel processes (:func:`try_sizes`; one Numba thread each).
-4. **The rule** (:func:`recommend`): the smallest size with no ``tight`` or ``too tight to wear`` verdict
-   (:func:`vfit_engine.fit.verdict.is_tight`, the one rule's verdicts of the fit table) at a *key* region
-   (the regions that decide a size: chest/bust, waist, hips where the garment covers them); a tight
-   opening elsewhere (a cuff, a sleeve hem) does not change the size. If every size is tight at a key
-   region, the largest, saying that it is still tight and where. A size whose drape diverged or
+4. **The rule** (:func:`recommend`): the smallest size whose every region is at least ``fitted``: no
+   ``tight`` or ``too tight to wear`` verdict (:func:`vfit_engine.fit.verdict.is_tight`, the one rule's
+   verdicts of the fit table) at any row of its table -- chest/bust, waist, hips, neck, upper arms,
+   thighs and the garment's openings (waistband, neckline, hems); a size too small is *rejected* by the
+   rows that are tight (:func:`rejection`: "tight at the left upper arm ..."). If every size is tight
+   somewhere, the largest, saying that it is still tight and where. A size whose drape diverged or
    failed has no verdict and is passed over (the reason says so); one that did not settle within the
    frame limit is judged on its last frame (the reason says so).
 """
@@ -53,7 +54,7 @@ from vfit_engine.body.resolve import Body, default_body, resolve_body
 from vfit_engine.drape import DrapeDiverged, DrapeSettings, prepare_drape, run_drape
 from vfit_engine.drape.setup import garment_gender
 from vfit_engine.errors import InputError, VfitError
-from vfit_engine.fit.verdict import is_tight, summary_line
+from vfit_engine.fit.verdict import is_tight, stretch, summary_line
 from vfit_engine.garment.garment import load_garment
 from vfit_engine.garment.placement import place_garment
 from vfit_engine.garment.transfer import transfer_garment
@@ -69,8 +70,9 @@ SIZES = {
 #: The sizes, smallest first.
 SIZE_NAMES = tuple(s[0] for s in SIZES["female"])
 #: The rule of :func:`recommend`, in words (``vfit size --help`` and the JSON say it).
-RULE = ("the smallest size with no tight verdict (tight or too tight to wear) at a key region (chest/bust, waist, "
-        "hips where the garment covers them); if every size is tight there, the largest, saying where it is tight")
+RULE = ("the smallest size whose every region is at least fitted: no tight verdict (tight or too tight to wear) at "
+        "any region of its fit table (chest/bust, waist, hips, neck, upper arms, thighs, openings); if every size is "
+        "tight somewhere, the largest, saying where it is tight")
 #: Statuses of a tried size: judged on its settled drape, on its last frame, or not judged.
 STATUSES = ("settled", "not settled", "diverged", "failed")
 #: Statuses whose fit table counts.
@@ -436,9 +438,9 @@ def _where(rows):
         bits = []
         if r.get("ease_cm") is not None:
             bits.append(f"ease {r['ease_cm']:+.1f} cm")
-        stretch = r.get("girth_strain", r.get("max_strain"))
-        if stretch is not None:
-            bits.append(f"stretched {100 * stretch:.1f} %")
+        s = stretch(r)  # the one the rule reads (an opening's: at least the stretch the body forces on it)
+        if s is not None:
+            bits.append(f"stretched {100 * s:.1f} %")
         if r.get("verdict") == "too tight to wear":  # the rule's word where "tight" says too little
             bits.insert(0, r["verdict"])
         parts.append(_region(r["region"]) + (f" ({', '.join(bits)})" if bits else ""))
@@ -462,6 +464,14 @@ def _join(words):
     return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
 
 
+def rejection(size):
+    """Why a tried size is too small (:data:`RULE`): ``"tight at the chest (ease +3.4 cm, stretched 3.7 %) and left
+    thigh (...)"``, the rows of its fit table whose verdict is tight or too tight to wear; None when it has none
+    (or no fit table)."""
+    rows = [r for r in size.get("fit") or () if is_tight(r)]
+    return f"tight at {_where(rows)}" if rows else None
+
+
 def recommend(results):
     """The size to buy and why (the rule: module docstring, :data:`RULE`).
 
@@ -469,8 +479,8 @@ def recommend(results):
     ----------
     results : dict or list of dict
         :func:`try_sizes`'s result, or its ``sizes``: per size, smallest first, ``size``, ``status``
-        (:data:`STATUSES`) and ``fit`` (rows with ``region``, ``verdict``, ``key``, ``ease_cm``,
-        ``max_strain``), ``message``.
+        (:data:`STATUSES`) and ``fit`` (rows with ``region``, ``verdict``, ``ease_cm``, ``girth_strain``),
+        ``message``.
 
     Returns
     -------
@@ -483,20 +493,19 @@ def recommend(results):
     notes = [f"{s['size']} not judged ({s.get('status')}: {s.get('message')})" for s in sizes if s not in judged]
     if not judged:
         return None, "no size could be judged: " + "; ".join(notes)
-    tight = {s["size"]: [r for r in s["fit"] if r.get("key") and is_tight(r)] for s in judged}
-    pick = next((s for s in judged if not tight[s["size"]]), None)
+    pick = next((s for s in judged if rejection(s) is None), None)
     if pick is None:
         pick = judged[-1]
-        reason = f"{pick['size']}: every size tried is tight; the largest, {pick['size']}, is still tight at " \
-                 f"{_where(tight[pick['size']])}"
+        reason = f"{pick['size']}: every size tried is tight somewhere; the largest, {pick['size']}, is still " \
+                 f"{rejection(pick)}"
     else:
-        keys = list(dict.fromkeys(_region(r["region"]) for r in pick["fit"] if r.get("key")))
-        where = f"not tight at {_join(keys)}" if keys else "not tight (it covers no key region)"
+        covered = any(r.get("garment_girth_cm") is not None for r in pick["fit"])
+        where = "every region at least fitted" if covered else "not tight (it covers no region of the table)"
         smaller = [s for s in judged if SIZE_NAMES.index(s["size"]) < SIZE_NAMES.index(pick["size"])]
-        reason = f"{pick['size']}: the smallest size {where}"
+        reason = f"{pick['size']}: the smallest size with {where}"
         if smaller:
             below = smaller[-1]
-            reason += f" ({below['size']} is tight at {_where(tight[below['size']])})"
+            reason += f" ({below['size']} is {rejection(below)})"
         else:
             reason += " (the smallest size tried)"
     if pick.get("status") == "not settled":

@@ -40,7 +40,8 @@ line there is other cloth (a shirt's collar held open by the shoulders round a n
 with 15 cm of ease; a trouser leg pulled from the seat round a thigh it is 3 cm bigger than): it reads no
 more than 0. The yarns' peaks stay in ``max_strain``.
 
-``key`` marks the regions that decide a size (bust/chest, waist and hips). A girth the customer gave that
+``key`` marks the girths letter sizes are labelled by (EN 13402: bust/chest, waist and hips; every
+region's verdict decides ``vfit size``'s choice). A girth the customer gave that
 the garment does not go round has its row all the same (verdict ``not covered``, no garment figures).
 """
 from __future__ import annotations

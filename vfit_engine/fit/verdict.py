@@ -43,7 +43,7 @@ import math
 
 #: The verdicts, tightest first.
 VERDICTS = ("too tight to wear", "tight", "fitted", "loose", "too loose")
-#: The verdicts that stretch the cloth round the region (a size that has one at a key region is too small).
+#: The verdicts that stretch the cloth round the region (a size that has one at any region is too small).
 TIGHT = VERDICTS[:2]
 #: The row of a girth the customer gave that the garment does not go round (no fit verdict).
 NOT_COVERED = "not covered"
