@@ -219,33 +219,21 @@ def test_a_region_the_garment_goes_round_with_room_is_not_stretched_by_it():
     assert region_stretch(0.05, 1.03, 1.00, gap=0.005) == 0.05  # a wider gap leaves 3 cm no room
 
 
-@pytest.fixture(scope="module")
-def suit02_customer(tmp_path_factory):
-    """``vfit drape male_casualsuit02.obj --gender male --waist 84 --hips 100`` (the README's fit table)."""
-    if not GARMENTS.is_dir():
-        pytest.skip("../shared/assets/garments (MakeHuman clothes) absent")
-    out = tmp_path_factory.mktemp("fit") / "o"
-    r = CliRunner().invoke(cli, ["drape", str(GARMENTS / "male_casualsuit02" / "male_casualsuit02.obj"),
-                                 "--gender", "male", "--waist", "84", "--hips", "100", "-o", str(out), "--every", "0"])
-    assert r.exit_code == 0, r.output
-    return json.loads((out / "report.json").read_text()), r.output
-
-
-def test_the_neck_with_15_cm_of_ease_is_not_tight(suit02_customer):
-    """Issue 33: the shirt's neck row read "tight" (3.7 %) with +15 cm of ease: its line in the neck's plane is the
-    collar standing clear of the neck, held open by the shoulders, 14 cm longer as made than the neck. The neck
-    does not stretch it: not tight; the chest, made smaller than his (estimated) chest, is stretched by it; every
-    body region whose garment as made goes round it with room reads no stretch."""
+def test_the_neck_with_ease_is_not_tight(suit02):
+    """Issue 33: the shirt's neck row read "tight" (3.7 %) with +15 cm of ease on the issue's customer: its line in
+    the neck's plane is the collar standing clear of the neck, held open by the shoulders, longer as made than the
+    neck. The neck does not stretch it: not tight; every body region whose garment as made goes round it with room
+    reads no stretch. (The default man of the module's drape has the same collar, 7.8 cm longer than his neck: it
+    read 1.6 % there before, his upper arms and thighs 1.5-1.6 %.)"""
     from vfit_engine.drape.settings import DrapeSettings
 
-    report, output = suit02_customer
+    out, _ = suit02  # the default man: his neck row is the same collar as the customer's of the issue
+    report = json.loads((out / "report.json").read_text())
     rows = {r["region"]: r for r in report["fit"]}
     neck = rows["neck"]
-    assert neck["ease_cm"] > 10 and neck["garment_made_cm"] - neck["body_girth_cm"] > 10
+    assert neck["ease_cm"] > 5 and neck["garment_made_cm"] - neck["body_girth_cm"] > 5  # 7.8 cm on him
     assert neck["girth_strain"] <= 0.0 and neck["verdict"] not in ("tight", "too tight to wear")
     assert not re.search(r"\bneck\b", report["fit_summary"].split("fitted")[0])  # not among the tight ones
-    chest = rows["chest"]
-    assert chest["garment_made_cm"] < chest["body_girth_cm"] and chest["verdict"] == "tight"
     room = 100 * 2 * np.pi * DrapeSettings().contact.skin
     for r in report["fit"]:
         if r.get("garment_made_cm") is not None and r["garment_made_cm"] - r["body_girth_cm"] >= room:
