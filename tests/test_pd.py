@@ -149,6 +149,30 @@ def test_corner_projection_turns_both_arms_by_half_the_excess():
     assert math.degrees(math.acos(pu @ u)) == pytest.approx(5.0)  # each arm turned by half of the 10 degrees
 
 
+@pytest.mark.parametrize("angle", [1e-3, 0.3, 1.2, math.pi / 2, 2.0, math.pi - 1e-3])
+def test_corner_projection_without_trigonometry_matches_the_rotation(angle):
+    """The kernel's projection (the excess's half angle from cosines and sines) against the reference's rotation
+    by the half excess, for excesses from 1e-9 rad to most of the band, both ways, arms of unequal lengths."""
+    from vfit_engine.kernels.pd import _corner_targets
+
+    rng = np.random.default_rng(int(angle * 1000))
+    for excess in (1e-9, 1e-5, 0.01, 0.2, 0.5 * min(angle, math.pi - angle)):
+        for sign in (1.0, -1.0):
+            axis = rng.normal(size=3)
+            axis /= np.linalg.norm(axis)
+            e1 = np.cross(axis, rng.normal(size=3))
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(axis, e1)
+            u = 0.02 * e1
+            v = 0.035 * (math.cos(angle) * e1 + math.sin(angle) * e2)
+            end = min(max(angle - sign * excess, 0.0), math.pi)
+            t_lo, t_hi = (end, math.pi) if sign < 0 else (0.0, end)
+            want = np.concatenate(naive_pd.corner_targets(u, v, t_lo, t_hi))
+            got = _corner_targets(*u, *v, u @ u, v @ v, math.cos(t_lo), math.cos(t_hi))
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * 0.035)
+            assert not np.allclose(got, np.concatenate([u, v]), rtol=0, atol=1e-3 * 0.035 * excess)
+
+
 def test_corners_clearly_inside_their_band_are_left_as_the_full_test_leaves_them():
     """The corner kernel's quick test (no root of the arms, no division) passes only corners the full test
     leaves as they are: bands ending exactly at, a hair inside or outside, and far from each corner's angle give
@@ -169,7 +193,7 @@ def test_corners_clearly_inside_their_band_are_left_as_the_full_test_leaves_them
     cos_hi = np.where(at_end, cos, np.cos(t_hi))
     w = rng.uniform(1.0, 100.0, len(c))
     got = np.zeros_like(x)
-    _corners(x, got, ci, cj, ck, cos_lo, cos_hi, t_lo, t_hi, w)
+    _corners(x, got, ci, cj, ck, cos_lo, cos_hi, w)
     want = np.zeros_like(x)
     projected = 0
     for m in range(len(c)):
@@ -177,7 +201,7 @@ def test_corners_clearly_inside_their_band_are_left_as_the_full_test_leaves_them
         pv = (x[cj[m]] - x[ck[m]]).tolist()
         qu = pu[0] * pu[0] + pu[1] * pu[1] + pu[2] * pu[2]
         qv = pv[0] * pv[0] + pv[1] * pv[1] + pv[2] * pv[2]
-        out = _corner_targets(*pu, *pv, qu, qv, cos_lo[m], cos_hi[m], t_lo[m], t_hi[m])
+        out = _corner_targets(*pu, *pv, qu, qv, cos_lo[m], cos_hi[m])
         projected += out != tuple(pu + pv)
         for a, arm in ((ci[m], out[:3]), (cj[m], out[3:])):
             for d in range(3):
