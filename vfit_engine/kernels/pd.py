@@ -279,8 +279,9 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
     b : (n, 3) out;  gap : (n, 3) out, m (each vertex's contact push);  count : (n,) scratch
     f_lag : (n, 3) N;  lag : bool
         The forces outside ``A`` and their diagonal's ``D x`` (the hinges' and the springs'): with ``lag`` those
-        kept in ``f_lag`` at an earlier iterate of the step are used (the hinges are most of the local step's
-        cost, and soft: every other iteration is enough), else they are evaluated here and kept there.
+        kept in ``f_lag`` at an earlier iterate of the step are used (the hinges cost about as much as the rest of
+        the local step, and are soft: every other iteration is enough), else they are evaluated here and kept
+        there.
     """
     n = x.shape[0]
     if not lag:
