@@ -168,7 +168,8 @@ def test_corner_projection_without_trigonometry_matches_the_rotation(angle):
             end = min(max(angle - sign * excess, 0.0), math.pi)
             t_lo, t_hi = (end, math.pi) if sign < 0 else (0.0, end)
             want = np.concatenate(naive_pd.corner_targets(u, v, t_lo, t_hi))
-            got = _corner_targets(*u, *v, u @ u, v @ v, math.cos(t_lo), math.cos(t_hi))
+            qu, qv = u @ u, v @ v
+            got = _corner_targets(*u, *v, qu, qv, u @ v, math.sqrt(qu * qv), math.cos(t_lo), math.cos(t_hi))
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * 0.035)
             assert not np.allclose(got, np.concatenate([u, v]), rtol=0, atol=1e-3 * 0.035 * excess)
 
@@ -201,7 +202,8 @@ def test_corners_clearly_inside_their_band_are_left_as_the_full_test_leaves_them
         pv = (x[cj[m]] - x[ck[m]]).tolist()
         qu = pu[0] * pu[0] + pu[1] * pu[1] + pu[2] * pu[2]
         qv = pv[0] * pv[0] + pv[1] * pv[1] + pv[2] * pv[2]
-        out = _corner_targets(*pu, *pv, qu, qv, cos_lo[m], cos_hi[m])
+        dot = pu[0] * pv[0] + pu[1] * pv[1] + pu[2] * pv[2]
+        out = _corner_targets(*pu, *pv, qu, qv, dot, math.sqrt(qu * qv), cos_lo[m], cos_hi[m])
         projected += out != tuple(pu + pv)
         for a, arm in ((ci[m], out[:3]), (cj[m], out[3:])):
             for d in range(3):
