@@ -103,7 +103,7 @@ _MOREBITS = 6.123233995736765886130e-17  # pi/2 - float(pi/2)
 def atan2_select(y, x):
     """``atan2(y, x)`` in (-pi, pi] (``atan2(-0, x < 0)`` is pi), within 2 ulp of ``math.atan2``, with selects in
     place of branches: a loop of them compiles to vector instructions where ``math.atan2`` is a call a value
-    (half the cost of a hinge). ``atan2(0, 0)`` is 0."""
+    (40 % of a hinge's cost in :func:`add_hinge_forces`). ``atan2(0, 0)`` is 0."""
     ay, ax = abs(y), abs(x)
     swap = ay > ax
     num = ax if swap else ay
@@ -142,8 +142,9 @@ def _block_angles(le2, q0, q1, ce, cs, ae, be, ang, nb):
 def add_elastic_hinge_forces(x, hi, hk, hrest, f_out, h0, h1):
     """Add the elastic forces ``-k (theta - theta0) d theta / d x_m`` of hinges ``h0 .. h1 - 1`` into ``f_out``
     (n, 3), N: :func:`add_hinge_forces` without damping (the projective-dynamics local step evaluates the hinges at
-    an iterate, with no velocity) at half its cost: no rate (a quarter of the cost), and the hinges taken in blocks
-    of :data:`HINGE_BLOCK` whose roots, divisions and angles vectorise (:func:`_block_angles`). The forces are
+    an iterate, with no velocity), without its rate and with the hinges taken in blocks of :data:`HINGE_BLOCK`
+    whose roots, divisions and angles vectorise (:func:`_block_angles`): the sphere drape's 58 k hinges in 1.7 ms
+    against 3.9 (3.2 with ``kd = 0``), the suit's 12.5 k in 0.55 against 1.1. The forces are
     :func:`add_hinge_forces`' but for its angle's rounding (within 2 ulp)."""
     b = HINGE_BLOCK
     le2, q0, q1, ce = np.empty(b), np.empty(b), np.empty(b), np.empty(b)
