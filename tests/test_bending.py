@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from vfit_engine.sim.springs import grid_polygons
-from vfit_engine.kernels.bending import eval_hinge_forces, project_hinges
+from vfit_engine.kernels.bending import (HINGE_BLOCK, add_elastic_hinge_forces, atan2_select,
+                                         eval_hinge_forces, project_hinges)
 from vfit_engine.sim.bending import bending_energy, build_hinges, hinge_angles
 from vfit_engine.textile.specimen import disc
 
@@ -36,6 +37,48 @@ def test_kernel_matches_the_reference_on_random_hinges():
     # internal forces: no net force, no net torque
     np.testing.assert_allclose(got.sum(axis=0), 0.0, atol=1e-12)
     np.testing.assert_allclose(np.cross(x, got).sum(axis=0), 0.0, atol=1e-12)
+
+
+def test_elastic_hinge_forces_are_the_undamped_hinge_forces():
+    """The projective-dynamics kernel (blocks of hinges, a branch-free angle) against the explicit one without
+    damping and the reference, over several blocks, a range that starts and ends inside blocks, and a collapsed
+    triangle (no force)."""
+    rng = np.random.default_rng(5)
+    pos, fv, fo = grid_polygons(12, 9, 0.2, 0.15, quads=False)
+    h = build_hinges(fv, fo, pos, 5e-6)
+    assert h.count > 2 * HINGE_BLOCK
+    x = pos + rng.normal(0, 4e-3, pos.shape)
+    rest = rng.uniform(-3.0, 3.0, h.count)  # some bends wrap past pi
+    k = rng.uniform(1e-6, 1e-5, h.count)
+    idx = np.ascontiguousarray(h.indices, dtype=np.int64)
+    h0, h1 = 3, h.count - 5
+    got = np.zeros_like(x)
+    add_elastic_hinge_forces(x, idx, k, rest, got, h0, h1)
+    want = eval_hinge_forces(x, x, 1.0, idx[h0:h1], k[h0:h1], np.zeros(h1 - h0), rest[h0:h1])
+    # the same operations but the angle's (within 2 ulp of math.atan2): equal to the rounding
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14 * np.abs(want).max())
+    ref = naive_sim.hinge_forces(x, x, 1.0, idx[h0:h1], k[h0:h1], np.zeros(h1 - h0), rest[h0:h1])
+    np.testing.assert_allclose(got, ref, atol=1e-9 * np.abs(ref).max(), rtol=1e-5)
+    x[idx[3, 2]] = x[idx[3, 0]]  # hinge 3's first triangle collapsed: no normal
+    alone = np.zeros_like(x)
+    add_elastic_hinge_forces(x, idx, k, rest, alone, 3, 4)
+    assert np.all(alone == 0.0)
+    add_elastic_hinge_forces(x, idx, k, rest, alone, 4, 5)
+    assert np.any(alone != 0.0)
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1.0, 1e12])
+def test_atan2_select_is_atan2_within_2_ulp(scale):
+    rng = np.random.default_rng(9)
+    y, x = rng.normal(size=(2, 20000)) * scale
+    y[:50] = 0.0
+    x[50:100] = 0.0
+    y[100:200] = x[100:200] * rng.uniform(0.6599, 0.6601, 100)  # where the reduction switches
+    y[200:300] = -x[200:300]
+    got = np.array([atan2_select(a, b) for a, b in zip(y, x)])
+    want = np.arctan2(y, x)
+    assert np.all(np.abs(got - want) <= 2 * np.spacing(np.abs(want)))
+    assert atan2_select(0.0, 0.0) == 0.0 and atan2_select(-0.0, -1.0) == math.pi
 
 
 def test_constraint_kernel_matches_the_reference_on_random_hinges():

@@ -50,7 +50,8 @@ def _elements(rng, model):
 
 
 def _planes(rng, x, pts_v, pts_b):
-    """Random half-spaces of half the points: about half of them cut in (depth <= 3 mm), a second plane on some."""
+    """Random half-spaces of half the points: about half of them cut in (depth <= 3 mm), and a second plane (a
+    crease's) on a third of those."""
     out = []
     listed = rng.choice(len(pts_v), size=len(pts_v) // 2, replace=False)
     for p in listed:
@@ -58,6 +59,11 @@ def _planes(rng, x, pts_v, pts_b):
         n /= np.linalg.norm(n)
         pt = pts_b[p] @ x[pts_v[p]]
         out.append((p, n, float(n @ pt + rng.uniform(-0.003, 0.003))))
+    for p, n, h in out[::3]:
+        n2 = n + rng.normal(scale=0.5, size=3)
+        n2 /= np.linalg.norm(n2)
+        pt = pts_b[p] @ x[pts_v[p]]
+        out.append((p, n2, float(n2 @ pt + rng.uniform(-0.003, 0.003))))
     return listed, out
 
 
@@ -71,10 +77,17 @@ def _points(rng, model):
 
 
 def _contact_arrays(listed, planes, count):
+    """The kernels' contact arrays: a point's first plane in ``c_n``, ``c_h``, its second (a crease) in ``c_n2``,
+    ``c_h2`` with ``c_nq2`` finite (NaN: none)."""
     c_n, c_h = np.zeros((count, 3)), np.zeros(count)
     c_n2, c_nq2, c_h2 = np.zeros((count, 3)), np.full(count, np.nan), np.zeros(count)
+    seen = set()
     for p, n, h in planes:
-        c_n[p], c_h[p] = n, h
+        if p in seen:
+            c_n2[p], c_h2[p], c_nq2[p] = n, h, 1.0
+        else:
+            c_n[p], c_h[p] = n, h
+            seen.add(p)
     return c_n, c_h, c_n2, c_nq2, c_h2, np.ascontiguousarray(listed, dtype=I64)
 
 
@@ -134,6 +147,70 @@ def test_corner_projection_turns_both_arms_by_half_the_excess():
     assert math.degrees(math.acos(pu @ pv / (np.linalg.norm(pu) * np.linalg.norm(pv)))) == pytest.approx(80)
     assert np.linalg.norm(pu) == pytest.approx(1.0) and np.linalg.norm(pv) == pytest.approx(2.0)
     assert math.degrees(math.acos(pu @ u)) == pytest.approx(5.0)  # each arm turned by half of the 10 degrees
+
+
+@pytest.mark.parametrize("angle", [1e-3, 0.3, 1.2, math.pi / 2, 2.0, math.pi - 1e-3])
+def test_corner_projection_without_trigonometry_matches_the_rotation(angle):
+    """The kernel's projection (the excess's half angle from cosines and sines) against the reference's rotation
+    by the half excess, for excesses from 1e-9 rad to most of the band, both ways, arms of unequal lengths."""
+    from vfit_engine.kernels.pd import _corner_targets
+
+    rng = np.random.default_rng(int(angle * 1000))
+    for excess in (1e-9, 1e-5, 0.01, 0.2, 0.5 * min(angle, math.pi - angle)):
+        for sign in (1.0, -1.0):
+            axis = rng.normal(size=3)
+            axis /= np.linalg.norm(axis)
+            e1 = np.cross(axis, rng.normal(size=3))
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(axis, e1)
+            u = 0.02 * e1
+            v = 0.035 * (math.cos(angle) * e1 + math.sin(angle) * e2)
+            end = min(max(angle - sign * excess, 0.0), math.pi)
+            t_lo, t_hi = (end, math.pi) if sign < 0 else (0.0, end)
+            want = np.concatenate(naive_pd.corner_targets(u, v, t_lo, t_hi))
+            qu, qv = u @ u, v @ v
+            got = _corner_targets(*u, *v, qu, qv, u @ v, math.sqrt(qu * qv), math.cos(t_lo), math.cos(t_hi))
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * 0.035)
+            assert not np.allclose(got, np.concatenate([u, v]), rtol=0, atol=1e-3 * 0.035 * excess)
+
+
+def test_corners_clearly_inside_their_band_are_left_as_the_full_test_leaves_them():
+    """The corner kernel's quick test (no root of the arms, no division) passes only corners the full test
+    leaves as they are: bands ending exactly at, a hair inside or outside, and far from each corner's angle give
+    the bits of the full test (:func:`vfit_engine.kernels.pd._corner_targets`) applied to every corner."""
+    from vfit_engine.kernels.pd import _corner_targets, _corners
+
+    rng, model, x = _cloth(5, n=8)
+    c = model.corners
+    ci, ck, cj = (np.ascontiguousarray(c[:, m], dtype=I64) for m in range(3))
+    u, v = x[ci] - x[ck], x[cj] - x[ck]
+    cos = np.sum(u * v, axis=1) / (np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))
+    angle = np.arccos(cos)
+    offset = rng.choice([0.0, 1e-15, -1e-15, 1e-13, -1e-13, 1e-10, -1e-10, 0.3, -0.3], size=(2, len(c)))
+    t_lo = np.minimum(angle + offset[0], angle)
+    t_hi = np.maximum(angle + offset[1], t_lo)
+    at_end = rng.random(len(c)) < 0.3  # these bands end at the corner's cosine itself
+    cos_lo = np.where(at_end, cos, np.cos(t_lo))
+    cos_hi = np.where(at_end, cos, np.cos(t_hi))
+    w = rng.uniform(1.0, 100.0, len(c))
+    got = np.zeros_like(x)
+    _corners(x, got, ci, cj, ck, cos_lo, cos_hi, w)
+    want = np.zeros_like(x)
+    projected = 0
+    for m in range(len(c)):
+        pu = (x[ci[m]] - x[ck[m]]).tolist()
+        pv = (x[cj[m]] - x[ck[m]]).tolist()
+        qu = pu[0] * pu[0] + pu[1] * pu[1] + pu[2] * pu[2]
+        qv = pv[0] * pv[0] + pv[1] * pv[1] + pv[2] * pv[2]
+        dot = pu[0] * pv[0] + pu[1] * pv[1] + pu[2] * pv[2]
+        out = _corner_targets(*pu, *pv, qu, qv, dot, math.sqrt(qu * qv), cos_lo[m], cos_hi[m])
+        projected += out != tuple(pu + pv)
+        for a, arm in ((ci[m], out[:3]), (cj[m], out[3:])):
+            for d in range(3):
+                want[a, d] += w[m] * arm[d]
+                want[ck[m], d] -= w[m] * arm[d]
+    assert 0 < projected < len(c)
+    np.testing.assert_array_equal(got, want)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

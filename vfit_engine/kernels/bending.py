@@ -87,6 +87,110 @@ def add_hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out, h0, h1):
         _add(f_out, i3, -mag, g3x, g3y, g3z)
 
 
+#: Hinges :func:`add_elastic_hinge_forces` takes at once: their geometry gathered one by one, then their roots,
+#: divisions and angles in one loop over the block that compiles to vector instructions, then their forces added.
+HINGE_BLOCK = 64
+
+# Cephes' atan (Moshier): atan t = t + t z P(z) / Q(z), z = t^2, on |t| <= 0.66
+_P0, _P1, _P2, _P3, _P4 = (-8.750608600031904122785e-1, -1.615753718733365076637e1, -7.500855792314704667340e1,
+                           -1.228866684490136173410e2, -6.485021904942025371773e1)
+_Q0, _Q1, _Q2, _Q3, _Q4 = (2.485846490142306297962e1, 1.650270098316988542046e2, 4.328810604912902668951e2,
+                           4.853903996359136964868e2, 1.945506571482613964425e2)
+_MOREBITS = 6.123233995736765886130e-17  # pi/2 - float(pi/2)
+
+
+@njit(inline="always")
+def atan2_select(y, x):
+    """``atan2(y, x)`` in (-pi, pi] (``atan2(-0, x < 0)`` is pi), within 2 ulp of ``math.atan2``, with selects in
+    place of branches: a loop of them compiles to vector instructions where ``math.atan2`` is a call a value
+    (40 % of a hinge's cost in :func:`add_hinge_forces`). ``atan2(0, 0)`` is 0."""
+    ay, ax = abs(y), abs(x)
+    swap = ay > ax
+    num = ax if swap else ay
+    den = ay if swap else ax
+    t = num / den if den > 0.0 else 0.0  # in [0, 1]
+    big = t > 0.66
+    t = (t - 1.0) / (t + 1.0) if big else t  # atan t = pi/4 + atan((t - 1) / (t + 1))
+    z = t * t
+    r = z * ((((_P0 * z + _P1) * z + _P2) * z + _P3) * z + _P4) / (((((z + _Q0) * z + _Q1) * z + _Q2) * z + _Q3) * z
+                                                                   + _Q4)
+    a = t * r + t
+    a = 0.25 * math.pi + (a + 0.5 * _MOREBITS) if big else a
+    a = 0.5 * math.pi - a + _MOREBITS if swap else a
+    a = math.pi - a if x < 0.0 else a
+    return -a if y < 0.0 else a
+
+
+@njit
+def _block_angles(le2, q0, q1, ce, cs, ae, be, ang, nb):
+    """The branch-free part of :func:`_bend` for ``nb`` hinges, in place: from the squared edge length ``le2``,
+    the squared normals ``q0``, ``q1``, ``ce = (n0 x n1) . e``, ``cs = n0 . n1``, ``ae = a . e``, ``be = b . e`` to
+    ``le2``: the edge length (0 for a collapsed triangle), ``q0``, ``q1``: ``s0``, ``s1``, ``ae``, ``be``: ``t2``,
+    ``t3`` and ``ang`` the angle -- the same operations as :func:`_bend`, but the angle's (:func:`atan2_select`)."""
+    for m in range(nb):
+        le = math.sqrt(le2[m])
+        ang[m] = atan2_select(ce[m] / le, cs[m])
+        ae[m] = ae[m] / (le * le)
+        be[m] = be[m] / (le * le)
+        collapsed = le <= 0.0 or q0[m] <= 0.0 or q1[m] <= 0.0
+        le2[m] = 0.0 if collapsed else le
+        q0[m] = le / q0[m]
+        q1[m] = le / q1[m]
+
+
+@njit
+def add_elastic_hinge_forces(x, hi, hk, hrest, f_out, h0, h1):
+    """Add the elastic forces ``-k (theta - theta0) d theta / d x_m`` of hinges ``h0 .. h1 - 1`` into ``f_out``
+    (n, 3), N: :func:`add_hinge_forces` without damping (the projective-dynamics local step evaluates the hinges at
+    an iterate, with no velocity), without its rate and with the hinges taken in blocks of :data:`HINGE_BLOCK`
+    whose roots, divisions and angles vectorise (:func:`_block_angles`): the sphere drape's 58 k hinges in 1.7 ms
+    against 3.9 (3.2 with ``kd = 0``), the suit's 12.5 k in 0.55 against 1.1. The forces are
+    :func:`add_hinge_forces`' but for its angle's rounding (within 2 ulp)."""
+    b = HINGE_BLOCK
+    le2, q0, q1, ce = np.empty(b), np.empty(b), np.empty(b), np.empty(b)
+    cs, ae, be, ang = np.empty(b), np.empty(b), np.empty(b), np.empty(b)
+    nrm = np.empty((HINGE_BLOCK, 6))
+    for start in range(h0, h1, HINGE_BLOCK):
+        nb = min(HINGE_BLOCK, h1 - start)
+        for m in range(nb):
+            i0, i1, i2, i3 = hi[start + m, 0], hi[start + m, 1], hi[start + m, 2], hi[start + m, 3]
+            ex, ey, ez = x[i1, 0] - x[i0, 0], x[i1, 1] - x[i0, 1], x[i1, 2] - x[i0, 2]
+            ax, ay, az = x[i2, 0] - x[i0, 0], x[i2, 1] - x[i0, 1], x[i2, 2] - x[i0, 2]
+            bx, by, bz = x[i3, 0] - x[i0, 0], x[i3, 1] - x[i0, 1], x[i3, 2] - x[i0, 2]
+            # n0 = e x a, n1 = b x e (as _bend)
+            n0x, n0y, n0z = ey * az - ez * ay, ez * ax - ex * az, ex * ay - ey * ax
+            n1x, n1y, n1z = by * ez - bz * ey, bz * ex - bx * ez, bx * ey - by * ex
+            cx, cy, cz = n0y * n1z - n0z * n1y, n0z * n1x - n0x * n1z, n0x * n1y - n0y * n1x
+            le2[m] = ex * ex + ey * ey + ez * ez
+            q0[m] = n0x * n0x + n0y * n0y + n0z * n0z
+            q1[m] = n1x * n1x + n1y * n1y + n1z * n1z
+            ce[m] = cx * ex + cy * ey + cz * ez
+            cs[m] = n0x * n1x + n0y * n1y + n0z * n1z
+            ae[m] = ax * ex + ay * ey + az * ez
+            be[m] = bx * ex + by * ey + bz * ez
+            nrm[m, 0], nrm[m, 1], nrm[m, 2], nrm[m, 3], nrm[m, 4], nrm[m, 5] = n0x, n0y, n0z, n1x, n1y, n1z
+        _block_angles(le2, q0, q1, ce, cs, ae, be, ang, nb)
+        for m in range(nb):
+            if le2[m] == 0.0:
+                continue  # a collapsed triangle has no normal: no bending force
+            h = start + m
+            d = ang[m] - hrest[h]
+            if d > math.pi:
+                d -= 2.0 * math.pi
+            elif d < -math.pi:
+                d += 2.0 * math.pi
+            s0, s1, t2, t3 = q0[m], q1[m], ae[m], be[m]
+            g2x, g2y, g2z = -s0 * nrm[m, 0], -s0 * nrm[m, 1], -s0 * nrm[m, 2]
+            g3x, g3y, g3z = -s1 * nrm[m, 3], -s1 * nrm[m, 4], -s1 * nrm[m, 5]
+            g1x, g1y, g1z = -t2 * g2x - t3 * g3x, -t2 * g2y - t3 * g3y, -t2 * g2z - t3 * g3z
+            g0x, g0y, g0z = -(g1x + g2x + g3x), -(g1y + g2y + g3y), -(g1z + g2z + g3z)
+            mag = hk[h] * d
+            _add(f_out, hi[h, 0], -mag, g0x, g0y, g0z)
+            _add(f_out, hi[h, 1], -mag, g1x, g1y, g1z)
+            _add(f_out, hi[h, 2], -mag, g2x, g2y, g2z)
+            _add(f_out, hi[h, 3], -mag, g3x, g3y, g3z)
+
+
 @njit
 def _hinge_forces(x, xp, inv_dt, hi, hk, hkd, hrest, f_out):
     f_out[:] = 0.0

@@ -36,8 +36,14 @@ move to ``b``: ``b_i += w_ip x_p`` (``pin_ptr``, ``pin_nbr``, ``pin_w`` in CSR f
 import math
 
 from vfit_engine._jit import njit
-from vfit_engine.kernels.bending import add_hinge_forces
+from vfit_engine.kernels.bending import add_elastic_hinge_forces
 from vfit_engine.kernels.contact_make import contact_point
+
+#: Relative margin of the quick test that finds a corner clearly inside its band of angles (one root, no division;
+#: 95 % of a garment's corners are): far above the rounding of the cosine (~1e-16), so that every corner it passes
+#: is one the full test (:func:`_corner_targets`) leaves as it is. (The same quick test on the distance bands,
+#: without their root, was slower: the bands inside and outside alternate too often for the branch.)
+_MARGIN = 1e-12
 
 
 @njit(inline="always")
@@ -63,58 +69,92 @@ def _band(x, i, j, lo, hi):
     return s * dx, s * dy, s * dz
 
 
-@njit(inline="always")
-def _turn(ax, ay, az, bx, by, bz, angle):
-    """Unit vector ``a`` turned by ``angle`` (rad) towards unit vector ``b`` in their plane."""
-    c = ax * bx + ay * by + az * bz
-    qx, qy, qz = bx - c * ax, by - c * ay, bz - c * az
-    q = math.sqrt(qx * qx + qy * qy + qz * qz)
-    if q <= 1e-12:
-        return ax, ay, az
-    ca, sa = math.cos(angle), math.sin(angle) / q
-    return ca * ax + sa * qx, ca * ay + sa * qy, ca * az + sa * qz
-
-
 @njit
-def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, t_lo, t_hi, w):
+def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, w):
     """The corner angle elements (module docstring) into ``b``; ``cos_lo``, ``cos_hi`` are the cosines of the
-    band's smallest and largest angle (most corners lie inside it: no trigonometry for them)."""
+    band's smallest and largest angle."""
     for c in range(ci.shape[0]):
         i, j, k = ci[c], cj[c], ck[c]
         ux, uy, uz = x[i, 0] - x[k, 0], x[i, 1] - x[k, 1], x[i, 2] - x[k, 2]
         vx, vy, vz = x[j, 0] - x[k, 0], x[j, 1] - x[k, 1], x[j, 2] - x[k, 2]
-        lu = math.sqrt(ux * ux + uy * uy + uz * uz)
-        lv = math.sqrt(vx * vx + vy * vy + vz * vz)
-        if lu > 0.0 and lv > 0.0:
-            cosa = (ux * vx + uy * vy + uz * vz) / (lu * lv)
-            if cosa < cos_hi[c] or cosa > cos_lo[c]:
-                ux, uy, uz, vx, vy, vz = ux / lu, uy / lu, uz / lu, vx / lv, vy / lv, vz / lv
-                angle = math.acos(min(max(cosa, -1.0), 1.0))
-                # both arms turn towards each other (or apart) by half the excess
-                half = 0.5 * (angle - min(max(angle, t_lo[c]), t_hi[c]))
-                pux, puy, puz = _turn(ux, uy, uz, vx, vy, vz, half)
-                pvx, pvy, pvz = _turn(vx, vy, vz, ux, uy, uz, half)
-                ux, uy, uz, vx, vy, vz = lu * pux, lu * puy, lu * puz, lv * pvx, lv * pvy, lv * pvz
+        qu = ux * ux + uy * uy + uz * uz
+        qv = vx * vx + vy * vy + vz * vz
+        dot = ux * vx + uy * vy + uz * vz
+        ll = math.sqrt(qu * qv)
+        # clearly inside the band (cos_hi < cos < cos_lo by _MARGIN): the arms as they are; else the full test
+        lm = ll * _MARGIN
+        if not (cos_hi[c] * ll + lm < dot < cos_lo[c] * ll - lm):
+            ux, uy, uz, vx, vy, vz = _corner_targets(ux, uy, uz, vx, vy, vz, qu, qv, dot, ll, cos_lo[c], cos_hi[c])
         _scatter(b, k, i, w[c], ux, uy, uz)
         _scatter(b, k, j, w[c], vx, vy, vz)
 
 
 @njit(inline="always")
-def _depth(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, p, side):
-    """Contact point ``p``'s half-space ``side`` (0: its plane, 1: its crease's second one, if any):
-    ``(ok, nx, ny, nz, depth m, sum of its free vertices' squared weights)``; ``ok`` False when it has none."""
-    if side == 0:
-        nx, ny, nz, h = c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p]
-    elif c_nq2[p] == c_nq2[p]:
-        nx, ny, nz, h = c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p]
-    else:
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0
+def _corner_targets(ux, uy, uz, vx, vy, vz, qu, qv, dot, ll, cos_lo, cos_hi):
+    """The arms ``u``, ``v`` of a corner (their squared lengths ``qu``, ``qv``, dot product ``dot`` and product of
+    lengths ``ll``) projected onto its band of angles, whose ends have cosines ``cos_lo`` (the smallest angle) and
+    ``cos_hi`` (module docstring): both turned in their plane by half the excess, lengths kept; as they are inside
+    the band.
+
+    Without trigonometry, three roots and two divisions (the sphere drape's corners, half of them out of their
+    band: 1.0 ms against 1.9 with ``acos``, ``cos`` and ``sin``): the excess ``d = angle - end`` by its cosine and
+    sine from the angle's (the sine from the arms' cross product, exact at small angles) and the end's, the half
+    angle by ``cos(d/2) = sqrt((1 + cos d) / 2)``, ``sin(d/2) = sin d / (2 cos(d/2))``; an arm turns by it towards
+    the other's component normal to it (``|u| (v/|v| - cos u/|u|)``, of length ``|u| sin angle``)."""
+    if ll > 0.0:
+        il = 1.0 / ll
+        cosa = dot * il
+        if cosa < cos_hi or cosa > cos_lo:
+            ct = cos_hi if cosa < cos_hi else cos_lo
+            st = math.sqrt(max(1.0 - ct * ct, 0.0))  # the end's angle is in [0, pi]
+            wx, wy, wz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+            sa = math.sqrt(wx * wx + wy * wy + wz * wz) * il
+            if sa <= 1e-12:
+                return ux, uy, uz, vx, vy, vz  # no plane to turn in
+            ca = min(max(cosa, -1.0), 1.0)
+            cd, sd = ca * ct + sa * st, sa * ct - ca * st
+            ch = math.sqrt(max(0.5 * (1.0 + cd), 0.0))
+            # u' = |u| (ch u/|u| + sh (v/|v| - ca u/|u|) / sa) = cu u + sq |u|/|v| v, and v' likewise
+            sq = 0.5 * sd / (ch * sa) if ch > 0.0 else (1.0 if sd >= 0.0 else -1.0) / sa
+            cu, su, sv = ch - sq * ca, sq * qu * il, sq * qv * il
+            return (cu * ux + su * vx, cu * uy + su * vy, cu * uz + su * vz,
+                    cu * vx + sv * ux, cu * vy + sv * uy, cu * vz + sv * uz)
+    return ux, uy, uz, vx, vy, vz
+
+
+@njit(inline="always")
+def _depth(x, inv_mass, pt_v, pt_b, p, nx, ny, nz, h):
+    """Contact point ``p``'s depth (m) below the half-space ``n . x >= h`` and the sum of its free vertices'
+    squared weights."""
     px, py, pz = contact_point(x, pt_v, pt_b, p)
     den = 0.0
     for k in range(3):
         if inv_mass[pt_v[p, k]] > 0.0:
             den += pt_b[p, k] * pt_b[p, k]
-    return True, nx, ny, nz, h - (nx * px + ny * py + nz * pz), den
+    return h - (nx * px + ny * py + nz * pz), den
+
+
+# The kernels below walk the contact points' half-spaces as "the plane, then the crease's second one if the point
+# has one" (c_nq2 not NaN), each through an inlined helper. Written as a loop over the two sides that breaks at a
+# missing one, Numba compiled the same walk about ten times slower (0.85 ms against 0.09 ms for the suit's 5.9 k
+# points).
+
+@njit(inline="always")
+def _add_push(x, inv_mass, pt_v, pt_b, p, nx, ny, nz, h, gap, count):
+    """Contact point ``p``'s push out of the half-space ``n . x >= h`` spread over its free vertices into ``gap``
+    (their sum) and ``count`` (how many pushes each)."""
+    g, den = _depth(x, inv_mass, pt_v, pt_b, p, nx, ny, nz, h)
+    if g <= 0.0 or den <= 0.0:
+        return
+    for k in range(3):
+        v = pt_v[p, k]
+        if inv_mass[v] <= 0.0 or pt_b[p, k] == 0.0:
+            continue
+        s = pt_b[p, k] * g / den
+        gap[v, 0] += s * nx
+        gap[v, 1] += s * ny
+        gap[v, 2] += s * nz
+        count[v] += 1.0
 
 
 @njit
@@ -127,21 +167,9 @@ def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_lis
         count[i] = 0.0
     for m in range(n_c):
         p = c_list[m]
-        for side in range(2):
-            ok, nx, ny, nz, g, den = _depth(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, p, side)
-            if not ok:
-                break
-            if g <= 0.0 or den <= 0.0:
-                continue
-            for k in range(3):
-                v = pt_v[p, k]
-                if inv_mass[v] <= 0.0 or pt_b[p, k] == 0.0:
-                    continue
-                s = pt_b[p, k] * g / den
-                gap[v, 0] += s * nx
-                gap[v, 1] += s * ny
-                gap[v, 2] += s * nz
-                count[v] += 1.0
+        _add_push(x, inv_mass, pt_v, pt_b, p, c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p], gap, count)
+        if c_nq2[p] == c_nq2[p]:
+            _add_push(x, inv_mass, pt_v, pt_b, p, c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p], gap, count)
     for i in range(n):
         if inv_mass[i] <= 0.0:
             continue
@@ -152,6 +180,29 @@ def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_lis
         b[i, 0] += w_c[i] * (x[i, 0] + gap[i, 0])
         b[i, 1] += w_c[i] * (x[i, 1] + gap[i, 1])
         b[i, 2] += w_c[i] * (x[i, 2] + gap[i, 2])
+
+
+@njit(inline="always")
+def _add_share(x, inv_mass, pt_v, pt_b, p, nx, ny, nz, h, acc_g, acc_n, acc_w):
+    """Contact point ``p``'s signed depth below the half-space ``n . x >= h`` shared among its free vertices
+    (:func:`contact_forces`): the deepest share into ``acc_g``, the weights and weighted normals summed."""
+    g, den = _depth(x, inv_mass, pt_v, pt_b, p, nx, ny, nz, h)
+    if den <= 0.0:
+        return
+    for k in range(3):
+        v = pt_v[p, k]
+        w = pt_b[p, k]
+        if w <= 0.0 or inv_mass[v] <= 0.0:
+            continue
+        # the vertex's share of the point's depth (its move in the point's projection, PBD's); the deepest
+        # share decides: a point cutting in between vertices must not be cancelled by clear ones
+        share = w * g / den
+        if acc_w[v] == 0.0 or share > acc_g[v]:
+            acc_g[v] = share
+        acc_w[v] += w
+        acc_n[v, 0] += w * nx
+        acc_n[v, 1] += w * ny
+        acc_n[v, 2] += w * nz
 
 
 @njit
@@ -170,26 +221,9 @@ def contact_forces(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list,
         acc_n[i, 0] = acc_n[i, 1] = acc_n[i, 2] = 0.0
     for m in range(n_c):
         p = c_list[m]
-        for side in range(2):
-            ok, nx, ny, nz, g, den = _depth(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, p, side)
-            if not ok:
-                break
-            if den <= 0.0:
-                continue
-            for k in range(3):
-                v = pt_v[p, k]
-                w = pt_b[p, k]
-                if w <= 0.0 or inv_mass[v] <= 0.0:
-                    continue
-                # the vertex's share of the point's depth (its move in the point's projection, PBD's); the deepest
-                # share decides: a point cutting in between vertices must not be cancelled by clear ones
-                share = w * g / den
-                if acc_w[v] == 0.0 or share > acc_g[v]:
-                    acc_g[v] = share
-                acc_w[v] += w
-                acc_n[v, 0] += w * nx
-                acc_n[v, 1] += w * ny
-                acc_n[v, 2] += w * nz
+        _add_share(x, inv_mass, pt_v, pt_b, p, c_n[p, 0], c_n[p, 1], c_n[p, 2], c_h[p], acc_g, acc_n, acc_w)
+        if c_nq2[p] == c_nq2[p]:
+            _add_share(x, inv_mass, pt_v, pt_b, p, c_n2[p, 0], c_n2[p, 1], c_n2[p, 2], c_h2[p], acc_g, acc_n, acc_w)
     for i in range(n):
         if acc_w[i] > 0.0:
             q = math.sqrt(acc_n[i, 0] * acc_n[i, 0] + acc_n[i, 1] * acc_n[i, 1] + acc_n[i, 2] * acc_n[i, 2])
@@ -226,7 +260,8 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
     e_i, e_j, e_lo, e_hi, e_w : (E,)
         Distance bands in ``A``: ends, band (m) and weight (N/m).
     a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi, a_w : (K,)
-        Corner angle bands: arms' ends, corner, the cosines of the band's ends, the band (rad) and weight (N/m).
+        Corner angle bands: arms' ends, corner, the cosines of the band's ends, the band (rad: its cosines are what
+        the kernel reads) and weight (N/m).
     s_i, s_j, s_lo, s_hi, s_w : (F,)
         One-sided springs outside ``A`` (bend limits, explicit springs): ends, band (m), stiffness (N/m).
     h_i, h_k, h_rest : (H, 4), (H,), (H,)
@@ -241,8 +276,9 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
     b : (n, 3) out;  gap : (n, 3) out, m (each vertex's contact push);  count : (n,) scratch
     f_lag : (n, 3) N;  lag : bool
         The forces outside ``A`` and their diagonal's ``D x`` (the hinges' and the springs'): with ``lag`` those
-        kept in ``f_lag`` at an earlier iterate of the step are used (the hinges are most of the local step's
-        cost, and soft: every other iteration is enough), else they are evaluated here and kept there.
+        kept in ``f_lag`` at an earlier iterate of the step are used (the hinges cost about as much as the rest of
+        the local step, and are soft: every other iteration is enough), else they are evaluated here and kept
+        there.
     """
     n = x.shape[0]
     if not lag:
@@ -253,7 +289,7 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
     for e in range(e_i.shape[0]):
         px, py, pz = _band(x, e_i[e], e_j[e], e_lo[e], e_hi[e])
         _scatter(b, e_i[e], e_j[e], e_w[e], px, py, pz)
-    _corners(x, b, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi, a_w)
+    _corners(x, b, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_w)
     _contact_targets(x, inv_mass, pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count)
     for i in range(n):
         if lam[i] > 0.0:
@@ -282,7 +318,7 @@ def _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f):
         px, py, pz = _band(x, i, j, s_lo[e], s_hi[e])
         # the spring's force at the iterate: w (p - d) on j, its opposite on i
         _scatter(f, i, j, s_w[e], px - (x[j, 0] - x[i, 0]), py - (x[j, 1] - x[i, 1]), pz - (x[j, 2] - x[i, 2]))
-    add_hinge_forces(x, x, 0.0, h_i, h_k, h_k, h_rest, f, 0, h_i.shape[0])
+    add_elastic_hinge_forces(x, h_i, h_k, h_rest, f, 0, h_i.shape[0])
 
 
 @njit
