@@ -179,6 +179,29 @@ def test_supernodal_factor_matches_a_dense_ldl_and_holds_the_pattern(case):
         assert widths.tolist() == [w] * (300 // w) + [300 % w]
 
 
+@pytest.mark.parametrize("case", ["cloth", "random"])
+def test_supernodes_are_subtrees_within_the_relaxation_bounds(case):
+    a = cloth_matrix(24) if case == "cloth" else random_spd(400, 39)
+    f = SPDFactor(a)
+    sf, rp = f.arrays.sf, f.arrays.rp
+    cp, ci, _, _ = upper_of_permuted(a, f.arrays.perm)
+    n = f.n
+    parent, count = np.empty(n, np.int64), np.empty(n, np.int64)
+    ldl_symbolic(cp, ci, parent, count, np.empty(n, np.int64))
+    fundamental = 1 + np.count_nonzero((parent[:-1] != np.arange(1, n)) | (count[:-1] != count[1:] + 1))
+    assert sf.size - 1 < fundamental  # the relaxation merged some
+    for s in range(sf.size - 1):
+        cols = np.arange(sf[s], sf[s + 1])
+        w, m = cols.size, rp[s + 1] - rp[s]
+        assert w <= supernodal_ldl.MAX_WIDTH
+        assert np.all((parent[cols[:-1]] > cols[:-1]) & (parent[cols[:-1]] <= cols[-1]))  # a subtree's columns
+        size = w * m - w * (w - 1) // 2
+        zeros = (size - (count[cols] + 1).sum()) / size
+        allowed = max([z for wmax, z in zip(supernodal_ldl.RELAX_WIDTH, supernodal_ldl.RELAX_ZEROS) if w <= wmax],
+                      default=0.0)
+        assert zeros == 0 or zeros <= allowed + 1e-12, (s, w, zeros)
+
+
 def test_supernodal_and_simplicial_factors_agree_on_the_same_order():
     """The simplicial kernels (the reference, and the benchmark's old path) on the supernodal factor's order."""
     a = cloth_matrix(20, seed=34)

@@ -23,8 +23,9 @@ import numpy as np
 
 from vfit_engine._jit import njit
 
-#: Multiply-adds from which a supernode's update of another is one BLAS product (below, the call and the
-#: scatter of its result cost more than plain loops).
+#: Multiply-adds from which a product (a supernode's update of another, or the solve of a block's rows below its
+#: diagonal) is done by BLAS (numpy's ``dot``), then scattered; smaller ones by loops. At 10 k vertices a refactor
+#: took 13.0 ms of CPU against 20.3 ms with loops only; thresholds from 128 to 8,192 measured alike.
 BLAS_MIN = 2048
 
 #: Multiply-adds up to which OpenBLAS (numpy's and scipy's) multiplies in the calling thread
@@ -33,16 +34,14 @@ BLAS_MIN = 2048
 #: of CPU at 10 k vertices); one thread is the cloth solver's rule (it runs beside other work).
 BLAS_SERIAL = 262144
 
-
 #: Widest supernode: its ``w x w`` transposed factor (18 kB) stays in a core's L1 cache while the rows below are
-#: solved; wider runs are cut (measured 12.6 ms against 13.5 ms uncut at 10 k vertices, within noise, and the cut
-#: bounds the scratch).
+#: solved, and the scratch stays small. 32, 48 and 64 measured alike (12.5 ms at 10 k vertices).
 MAX_WIDTH = 48
 
 #: Relaxed supernodes (CHOLMOD's defaults, Ashcraft & Grimes 1989): a supernode takes in its last child when the
 #: merged one is at most ``RELAX_WIDTH[i]`` columns wide and at most ``RELAX_ZEROS[i]`` of its entries are zeros
-#: it stores for nothing (any share up to 4 columns). On the 100 x 100 grid: 726 supernodes instead of 4,244,
-#: 802 k stored values instead of 661 k, a refactor 1.4 times faster.
+#: it stores for nothing. On the 100 x 100 grid: 726 supernodes instead of 4,244, 802 k stored values instead of
+#: 661 k, a refactor 1.3-1.4 times faster; fewer zeros (0.5 or 0.3 at 16 columns) measured alike.
 RELAX_WIDTH = (4, 16, 48)
 RELAX_ZEROS = (1.0, 0.8, 0.1)
 
@@ -89,7 +88,7 @@ def etree_postorder(parent, post_out, head, nxt, stack):
 
 
 @njit
-def supernode_partition(parent, count, sf_out, m_out, sn_of, stack, nz):
+def supernode_partition(parent, count, sf_out, m_out, nz):
     """Relaxed supernodes of a postordered factor: fundamental runs (each column's parent the next, patterns
     nested) cut at :data:`MAX_WIDTH`, then merged with their last child by :data:`RELAX_WIDTH` and
     :data:`RELAX_ZEROS`.
@@ -102,7 +101,7 @@ def supernode_partition(parent, count, sf_out, m_out, sn_of, stack, nz):
         Overwritten: the first column of each supernode, then ``n``.
     m_out : (n,) int64
         Overwritten: each supernode's row count (its columns and the rows below).
-    sn_of, stack, nz : (n,) int64
+    nz : (n,) int64
         Scratch.
 
     Returns
@@ -114,11 +113,9 @@ def supernode_partition(parent, count, sf_out, m_out, sn_of, stack, nz):
     ns = 0
     for j in range(n):
         if j > 0 and parent[j - 1] == j and count[j - 1] == count[j] + 1 and j - sf_out[ns - 1] < MAX_WIDTH:
-            sn_of[j] = ns - 1
             continue
         sf_out[ns] = j
         m_out[ns] = count[j] + 1
-        sn_of[j] = ns
         ns += 1
     sf_out[ns] = n
     # merge on a stack of finished supernodes (written over the arrays' front: it is never ahead of the reading)
@@ -148,7 +145,6 @@ def supernode_partition(parent, count, sf_out, m_out, sn_of, stack, nz):
         sf_out[top] = f
         m_out[top] = m
         nz[top] = true_nz
-        stack[top] = s
         top += 1
     sf_out[top] = n
     return top

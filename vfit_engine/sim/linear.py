@@ -249,7 +249,7 @@ class SPDFactor:
         c_index, cp, ci = _upper_triangle(a, perm)
         parent, count = _etree(cp, ci)
         sf, m = np.empty(n + 1, dtype=np.int64), np.empty(n, dtype=np.int64)
-        ns = supernode_partition(parent, count, sf, m, *(np.empty(n, dtype=np.int64) for _ in range(3)))
+        ns = supernode_partition(parent, count, sf, m, np.empty(n, dtype=np.int64))
         sf, m = sf[:ns + 1].copy(), m[:ns].copy()
         w = np.diff(sf)
         sn_of = np.repeat(np.arange(ns, dtype=np.int64), w)
