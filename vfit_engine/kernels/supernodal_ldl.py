@@ -317,10 +317,8 @@ def _update(j, k, sf, rp, ri, xp, lx, d, relmap, ptr, tbuf, wrow, relb, wbuf):
     fk = sf[k]
     # tbuf[c * m1 + b] = d_c L_k[p1 + b, c]: the rows in j's columns, transposed and scaled, for axpys along b
     for b in range(m1):
-        row = bk + (p1 + b) * wk
         relb[b] = relmap[ri[rk + p1 + b]]
-        for c in range(wk):
-            tbuf[c * m1 + b] = d[fk + c] * lx[row + c]
+        _scaled_column(tbuf, b, m1, d, fk, lx, bk + (p1 + b) * wk, wk)
     bj = xp[j]
     m2 = mk - p1
     if m2 * m1 * wk >= BLAS_MIN:  # one product by BLAS, then scattered
@@ -377,11 +375,8 @@ def _factor_block(lx, base, m, w, d, f, tbuf, dinv, wbuf):
             for c in range(i):
                 wbuf[c * w + i], wbuf[i * w + c] = wbuf[i * w + c], wbuf[c * w + i]
         _gemm(lx, base + w * w, below, w, wbuf, 0, w, wbuf, w * w)
-        flat = wbuf[w * w:w * w + below * w]
         for r in range(below):
-            row = base + (w + r) * w
-            for c in range(w):
-                lx[row + c] = flat[r * w + c] * dinv[c]
+            _scaled_row(lx, base + (w + r) * w, wbuf, w * w + r * w, dinv, w)
         return -1
     for r in range(w, m):
         row = base + r * w
@@ -413,6 +408,26 @@ def _axpy(y, y0, x, x0, count, a):
     xo = np.uint64(x0)
     for i in range(np.uint64(count)):
         y[yo + i] += a * x[xo + i]
+
+
+@njit(inline="always")
+def _scaled_row(y, y0, x, x0, s, count):
+    """``y[y0 + i] = x[x0 + i] * s[i]`` for ``i < count`` (unsigned indices, as :func:`_axpy`)."""
+    yo = np.uint64(y0)
+    xo = np.uint64(x0)
+    for i in range(np.uint64(count)):
+        y[yo + i] = x[xo + i] * s[i]
+
+
+@njit(inline="always")
+def _scaled_column(y, y0, stride, s, s0, x, x0, count):
+    """``y[y0 + i * stride] = s[s0 + i] * x[x0 + i]`` for ``i < count`` (unsigned indices)."""
+    yo = np.uint64(y0)
+    st = np.uint64(stride)
+    so = np.uint64(s0)
+    xo = np.uint64(x0)
+    for i in range(np.uint64(count)):
+        y[yo + i * st] = s[so + i] * x[xo + i]
 
 
 @njit(inline="always")
