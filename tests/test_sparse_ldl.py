@@ -12,9 +12,10 @@ from scipy.sparse.linalg import spsolve
 
 import naive_ldl
 import vfit_engine.sim.linear as linear
-from vfit_engine.kernels import supernodal_ldl
+from vfit_engine.kernels import supernodal_analysis
 from vfit_engine.kernels.sparse_ldl import ldl_numeric, ldl_solve3, ldl_symbolic
-from vfit_engine.kernels.supernodal_ldl import etree_postorder, sn_solve3
+from vfit_engine.kernels.supernodal_analysis import etree_postorder
+from vfit_engine.kernels.supernodal_ldl import sn_solve3
 from vfit_engine.sim.linear import SPDFactor, spring_laplacian
 from vfit_engine.sim.springs import BEND, build_springs, grid_polygons, vertex_masses
 
@@ -173,9 +174,9 @@ def test_supernodal_factor_matches_a_dense_ldl_and_holds_the_pattern(case):
     structure = naive_ldl.structural_factor(c != 0)[1]
     assert f.nnz_l == structure.sum()
     widths = np.diff(f.arrays.sf)
-    assert widths.max() <= supernodal_ldl.MAX_WIDTH and f.stored >= f.nnz_l + f.n
+    assert widths.max() <= supernodal_analysis.MAX_WIDTH and f.stored >= f.nnz_l + f.n
     if kind == "dense":  # one run of 300 columns, cut into the widest supernodes from the first column on
-        w = supernodal_ldl.MAX_WIDTH
+        w = supernodal_analysis.MAX_WIDTH
         assert widths.tolist() == [w] * (300 // w) + [300 % w]
 
 
@@ -193,12 +194,12 @@ def test_supernodes_are_subtrees_within_the_relaxation_bounds(case):
     for s in range(sf.size - 1):
         cols = np.arange(sf[s], sf[s + 1])
         w, m = cols.size, rp[s + 1] - rp[s]
-        assert w <= supernodal_ldl.MAX_WIDTH
+        assert w <= supernodal_analysis.MAX_WIDTH
         assert np.all((parent[cols[:-1]] > cols[:-1]) & (parent[cols[:-1]] <= cols[-1]))  # a subtree's columns
         size = w * m - w * (w - 1) // 2
         zeros = (size - (count[cols] + 1).sum()) / size
-        allowed = max([z for wmax, z in zip(supernodal_ldl.RELAX_WIDTH, supernodal_ldl.RELAX_ZEROS) if w <= wmax],
-                      default=0.0)
+        bounds = zip(supernodal_analysis.RELAX_WIDTH, supernodal_analysis.RELAX_ZEROS)
+        allowed = max([z for wmax, z in bounds if w <= wmax], default=0.0)
         assert zeros == 0 or zeros <= allowed + 1e-12, (s, w, zeros)
 
 

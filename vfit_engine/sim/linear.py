@@ -27,8 +27,8 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from scipy.sparse.linalg import splu
 
 from vfit_engine.kernels.sparse_ldl import ldl_symbolic
-from vfit_engine.kernels.supernodal_ldl import (etree_postorder, sn_numeric, sn_solve3, supernode_partition,
-                                                supernode_rows, value_map)
+from vfit_engine.kernels.supernodal_analysis import etree_postorder, supernode_partition, supernode_rows, value_map
+from vfit_engine.kernels.supernodal_ldl import sn_numeric, sn_solve3
 
 #: The fill-reducing orders :class:`SPDFactor` knows, the default first.
 ORDERINGS = ("mmd", "rcm", "natural")
