@@ -316,21 +316,43 @@ def sn_solve3(sf, rp, ri, xp, lx, d, perm, x, work):
         w = np.uint64(sf[s + 1] - sf[s])
         r0 = np.uint64(rp[s])
         m = np.uint64(rp[s + 1] - rp[s])
-        row = np.uint64(xp[s]) + m * w
-        for q in range(m):
-            r = m - np.uint64(1) - q
-            row -= w
+        base = np.uint64(xp[s])
+        r = w
+        while r + np.uint64(1) < m:  # rows below the block two at a time: half the passes over the block's x
             t = np.uint64(3 * ri[r0 + r])
-            x0 = z[t]
-            x1 = z[t + 1]
-            x2 = z[t + 2]
-            for c in range(min(r, w)):
+            u = np.uint64(3 * ri[r0 + r + np.uint64(1)])
+            x0, x1, x2 = z[t], z[t + np.uint64(1)], z[t + np.uint64(2)]
+            y0, y1, y2 = z[u], z[u + np.uint64(1)], z[u + np.uint64(2)]
+            row = base + r * w
+            for c in range(w):
                 v = lx[row + c]
-                z[f3 + 3 * c] -= v * x0
-                z[f3 + 3 * c + 1] -= v * x1
-                z[f3 + 3 * c + 2] -= v * x2
+                e = lx[row + w + c]
+                q = f3 + np.uint64(3) * c
+                z[q] -= v * x0 + e * y0
+                z[q + np.uint64(1)] -= v * x1 + e * y1
+                z[q + np.uint64(2)] -= v * x2 + e * y2
+            r += np.uint64(2)
+        for q in range(m - min(r, m)):  # the last row below (if odd), then the block's own rows upwards
+            _row_transposed(z, f3, lx, base, ri, r0, m - np.uint64(1) - q, w)
+        for q in range(min(m, w)):
+            _row_transposed(z, f3, lx, base, ri, r0, min(m, w) - np.uint64(1) - q, w)
     for k in range(n):
         pk = perm[k]
         x[pk, 0] = work[k, 0]
         x[pk, 1] = work[k, 1]
         x[pk, 2] = work[k, 2]
+
+
+@njit(inline="always")
+def _row_transposed(z, f3, lx, base, ri, r0, r, w):
+    """``x[f + c] -= L[r, c] x[ri[r]]`` for the columns ``c < min(r, w)`` of a block (flat (n, 3) ``z``,
+    unsigned indices)."""
+    t = np.uint64(3 * ri[r0 + r])
+    x0, x1, x2 = z[t], z[t + np.uint64(1)], z[t + np.uint64(2)]
+    row = base + r * w
+    for c in range(min(r, w)):
+        v = lx[row + c]
+        q = f3 + np.uint64(3) * c
+        z[q] -= v * x0
+        z[q + np.uint64(1)] -= v * x1
+        z[q + np.uint64(2)] -= v * x2
