@@ -5,7 +5,7 @@ The matrices are the ones the solver factors (``SolverPD.matrix()``, cotton, h =
 the shared ``female_casualsuit01`` (2,197 vertices; a 47 x 47 grid when ../shared is absent) and the 100 x 100
 sphere-drape grid (10,000 vertices). Each refactor gets new values in the same pattern, alternating between the
 matrix and one with its couplings weakened (:func:`new_values`, as the solver's band weights do). Times are medians
-of CPU time (``time.process_time``: the machine is shared), in ms:
+of CPU time (``time.process_time``: the machine is shared; old and new called in turn), in ms:
 
   * old: the simplicial up-looking LDL^T (``kernels/sparse_ldl.py``) on SuperLU's MMD order, as SPDFactor did
     before issue 32's supernodes: refactor = gathering C's values and ``ldl_numeric``; solve = ``ldl_solve3``;
@@ -31,12 +31,19 @@ GARMENT = (Path(__file__).resolve().parents[1] / ".." / "shared" / "assets" / "g
 
 def cpu_ms(fn, repeat):
     """Median CPU time of ``repeat`` calls of ``fn()``, in milliseconds."""
-    times = []
+    return paired_cpu_ms([fn], repeat)[0]
+
+
+def paired_cpu_ms(fns, repeat):
+    """Median CPU times (ms) of ``repeat`` calls of each of ``fns``, called in turn (old, new, old, ...): on a
+    shared machine both see the same load."""
+    times = [[] for _ in fns]
     for _ in range(repeat):
-        t = time.process_time()
-        fn()
-        times.append(time.process_time() - t)
-    return 1000 * float(np.median(times))
+        for fn, out in zip(fns, times):
+            t = time.process_time()
+            fn()
+            out.append(time.process_time() - t)
+    return [1000 * float(np.median(t)) for t in times]
 
 
 def solver_matrix(polygons):
@@ -134,9 +141,10 @@ def measure(name, a, repeat, solve_repeat):
                new_stored=new.stored, supernodes=new.supernodes)
     row["analyse_ms"] = cpu_ms(lambda: SPDFactor(a), max(3, repeat // 3))
     datas = (a.data, a2.data)
-    for label, fn in (("old", old.refactor), ("new", new.refactor_values)):
-        turn = iter(range(10 ** 9))
-        row[f"{label}_refactor_ms"] = cpu_ms(lambda: fn(datas[next(turn) % 2]), repeat)
+    turns = [iter(range(10 ** 9)), iter(range(10 ** 9))]
+    row["old_refactor_ms"], row["new_refactor_ms"] = paired_cpu_ms(
+        [lambda: old.refactor(datas[next(turns[0]) % 2]), lambda: new.refactor_values(datas[next(turns[1]) % 2])],
+        repeat)
 
     def solve(label):
         x[:] = b
@@ -145,8 +153,8 @@ def measure(name, a, repeat, solve_repeat):
         else:
             sn_solve3(*new.arrays, x, work)
 
-    for label in ("old", "new"):
-        row[f"{label}_solve3_ms"] = cpu_ms(lambda: solve(label), solve_repeat)
+    row["old_solve3_ms"], row["new_solve3_ms"] = paired_cpu_ms([lambda: solve("old"), lambda: solve("new")],
+                                                               solve_repeat)
     for label, factor in (("old", old), ("new", new)):
         factor.refactor(a2.data) if label == "old" else factor.refactor_values(a2.data)
         solve(label)
