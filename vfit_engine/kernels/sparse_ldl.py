@@ -17,7 +17,7 @@ barely faster (issue 32).
 
 :func:`ldl_solve3` takes plain arrays and a scratch array only, so a jitted loop can call it several times per step.
 
-The cloth solver factors with the supernodal kernels of :mod:`vfit_engine.kernels.supernodal_ldl` (4-4.5 times
+The cloth solver factors with the supernodal kernels of :mod:`vfit_engine.kernels.supernodal_ldl` (4.5-5 times
 less CPU per refactor at 10 k vertices), which take their elimination tree and column counts from
 :func:`ldl_symbolic`; :func:`ldl_numeric` and :func:`ldl_solve3` stay as the plain reference the supernodal factor
 is tested against and the old path ``benchmarks/bench_sparse_ldl.py`` measures it against.
