@@ -87,7 +87,8 @@ class SPDFactor:
         Symmetric positive definite; duplicate entries are summed. Explicit zeros are kept (a weight that is zero
         now keeps its place in the pattern) unless the pattern is unsymmetric with them.
     ordering : {"mmd", "rcm", "natural"}
-        Fill-reducing order (module docstring); "natural" is for comparisons.
+        Fill-reducing order (module docstring), postordered along its elimination tree (the same fill);
+        "natural" is for comparisons.
 
     Raises
     ------
