@@ -265,7 +265,7 @@ def test_undamped_free_fall_is_exact():
 
 def test_the_global_step_is_the_sparse_solve():
     """One iteration from rest: the kernel's LDL^T solve of the assembled matrix is scipy's."""
-    from vfit_engine.kernels.sparse_ldl import ldl_solve3
+    from vfit_engine.kernels.supernodal_ldl import sn_solve3
     from vfit_engine.sim.linear import SPDFactor
 
     rng, model, x = _cloth(4, n=7)
@@ -274,7 +274,7 @@ def test_the_global_step_is_the_sparse_solve():
     a = solver.matrix()
     b = rng.normal(size=(model.particle_count, 3))
     x_ldl, work = b.copy(), np.zeros_like(b)
-    ldl_solve3(*SPDFactor(a).arrays, x_ldl, work)
+    sn_solve3(*SPDFactor(a).arrays, x_ldl, work)
     np.testing.assert_allclose(x_ldl, spsolve(a.tocsc(), b), rtol=1e-10, atol=1e-12)
     # pinned rows are the identity: a pin stays where it is put
     pins = model.pin_indices

@@ -1,4 +1,5 @@
-"""Sparse LDL^T: the kernels against the slow references of naive_ldl.py, SPDFactor against scipy's spsolve.
+"""Sparse LDL^T: the kernels against the slow references of naive_ldl.py (and the supernodal factor against the
+simplicial one and a dense LDL^T), SPDFactor against scipy's spsolve.
 
 Matrices are what the projective-dynamics global step solves: seeded random graph Laplacians (random springs with
 random weights) plus a positive diagonal (the masses over h^2), and a real cloth grid's springs.
@@ -11,7 +12,10 @@ from scipy.sparse.linalg import spsolve
 
 import naive_ldl
 import vfit_engine.sim.linear as linear
+from vfit_engine.kernels import supernodal_analysis
 from vfit_engine.kernels.sparse_ldl import ldl_numeric, ldl_solve3, ldl_symbolic
+from vfit_engine.kernels.supernodal_analysis import etree_postorder
+from vfit_engine.kernels.supernodal_ldl import sn_solve3
 from vfit_engine.sim.linear import SPDFactor, spring_laplacian
 from vfit_engine.sim.springs import BEND, build_springs, grid_polygons, vertex_masses
 
@@ -104,6 +108,137 @@ def test_numeric_kernel_returns_the_first_nonpositive_pivot(c, k):
     scratch = [np.zeros(n)] + [np.empty(n, np.int64) for _ in range(3)]
     assert ldl_numeric(cp, ci, cx, lp, parent, np.empty(lp[-1], np.int64), np.empty(lp[-1]), np.empty(n),
                        *scratch) == k
+
+
+# -- the supernodal factor ------------------------------------------------------------------------
+
+def dense_factor(f):
+    """(L, d, C) of an SPDFactor: its supernodal blocks unpacked into a dense unit lower L of C = P A P^T (the
+    blocks' unused upper parts left out), and C rebuilt from the factor's own order."""
+    sf, rp, ri, xp, lx, d, perm = f.arrays
+    n = f.n
+    L = np.eye(n)
+    for s in range(sf.size - 1):
+        w, rows = sf[s + 1] - sf[s], ri[rp[s]:rp[s + 1]]
+        block = lx[xp[s]:xp[s + 1]].reshape(rows.size, w)
+        for c in range(w):
+            L[rows[c + 1:], sf[s] + c] = block[c + 1:, c]
+    return L, d.copy()
+
+
+def dense_spd(n, seed):
+    """A dense SPD matrix (every supernode as wide and long as the cut allows: the BLAS paths and their chunks)."""
+    g = np.random.default_rng(seed).normal(size=(n, n))
+    return sp.csc_matrix(g @ g.T / n + np.eye(n))
+
+
+def test_postorder_puts_children_first_and_subtrees_together():
+    rng = np.random.default_rng(30)
+    n = 200
+    parent = np.array([rng.integers(j + 1, n) if j < n - 1 and rng.random() < 0.9 else -1 for j in range(n)])
+    post = np.empty(n, np.int64)
+    etree_postorder(parent, post, *(np.empty(n, np.int64) for _ in range(3)))
+    assert sorted(post.tolist()) == list(range(n))
+    place = np.empty(n, np.int64)
+    place[post] = np.arange(n)
+    size = np.ones(n, np.int64)
+    for j in range(n):  # subtree sizes (a parent is numbered after its children)
+        if parent[j] >= 0:
+            size[parent[j]] += size[j]
+    for j in range(n):
+        assert parent[j] < 0 or place[j] < place[parent[j]]
+        # the subtree of j is the block of size[j] places ending at j's place
+        block = set(post[place[j] - size[j] + 1:place[j] + 1].tolist())
+        v = set()
+        for i in range(n):
+            k = i
+            while k >= 0 and k != j:
+                k = parent[k]
+            if k == j:
+                v.add(i)
+        assert block == v
+
+
+@pytest.mark.parametrize("case", ["random 1", "random 90", "random 400", "cloth 24", "dense 300", "components"])
+def test_supernodal_factor_matches_a_dense_ldl_and_holds_the_pattern(case):
+    kind, size = case.split()[0], (case.split() + ["0"])[1]
+    a = {"random": lambda: random_spd(int(size), 31), "cloth": lambda: cloth_matrix(int(size)),
+         "dense": lambda: dense_spd(int(size), 32), "components": lambda: random_spd(300, 33, components=7)}[kind]()
+    f = SPDFactor(a)
+    perm = f.arrays.perm
+    c = a[perm][:, perm].toarray()
+    L, d = dense_factor(f)
+    chol = np.linalg.cholesky(c)  # C = (chol / diag) diag^2 (chol / diag)^T
+    np.testing.assert_allclose(d, np.diag(chol) ** 2, rtol=1e-10)
+    np.testing.assert_allclose(L, chol / np.diag(chol), rtol=1e-9, atol=1e-11)
+    structure = naive_ldl.structural_factor(c != 0)[1]
+    assert f.nnz_l == structure.sum()
+    widths = np.diff(f.arrays.sf)
+    assert widths.max() <= supernodal_analysis.MAX_WIDTH and f.stored >= f.nnz_l + f.n
+    if kind == "dense":  # one run of 300 columns, cut into the widest supernodes from the first column on
+        w = supernodal_analysis.MAX_WIDTH
+        assert widths.tolist() == [w] * (300 // w) + [300 % w]
+
+
+@pytest.mark.parametrize("case", ["cloth", "random"])
+def test_supernodes_are_subtrees_within_the_relaxation_bounds(case):
+    a = cloth_matrix(24) if case == "cloth" else random_spd(400, 39)
+    f = SPDFactor(a)
+    sf, rp = f.arrays.sf, f.arrays.rp
+    cp, ci, _, _ = upper_of_permuted(a, f.arrays.perm)
+    n = f.n
+    parent, count = np.empty(n, np.int64), np.empty(n, np.int64)
+    ldl_symbolic(cp, ci, parent, count, np.empty(n, np.int64))
+    fundamental = 1 + np.count_nonzero((parent[:-1] != np.arange(1, n)) | (count[:-1] != count[1:] + 1))
+    assert sf.size - 1 < fundamental  # the relaxation merged some
+    for s in range(sf.size - 1):
+        cols = np.arange(sf[s], sf[s + 1])
+        w, m = cols.size, rp[s + 1] - rp[s]
+        assert w <= supernodal_analysis.MAX_WIDTH
+        assert np.all((parent[cols[:-1]] > cols[:-1]) & (parent[cols[:-1]] <= cols[-1]))  # a subtree's columns
+        size = w * m - w * (w - 1) // 2
+        zeros = (size - (count[cols] + 1).sum()) / size
+        bounds = zip(supernodal_analysis.RELAX_WIDTH, supernodal_analysis.RELAX_ZEROS)
+        allowed = max([z for wmax, z in bounds if w <= wmax], default=0.0)
+        assert zeros == 0 or zeros <= allowed + 1e-12, (s, w, zeros)
+
+
+def test_supernodal_and_simplicial_factors_agree_on_the_same_order():
+    """The simplicial kernels (the reference, and the benchmark's old path) on the supernodal factor's order."""
+    a = cloth_matrix(20, seed=34)
+    f = SPDFactor(a)
+    n = f.n
+    cp, ci, cx, _ = upper_of_permuted(a, f.arrays.perm)
+    parent, count = np.empty(n, np.int64), np.empty(n, np.int64)
+    ldl_symbolic(cp, ci, parent, count, np.empty(n, np.int64))
+    lp = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    li, lx, d = np.empty(lp[-1], np.int64), np.empty(lp[-1]), np.empty(n)
+    assert ldl_numeric(cp, ci, cx, lp, parent, li, lx, d, np.zeros(n), *(np.empty(n, np.int64) for _ in range(3))) < 0
+    np.testing.assert_allclose(f.arrays.d, d, rtol=1e-12)
+    L, _ = dense_factor(f)
+    simplicial = np.eye(n)
+    for j in range(n):
+        simplicial[li[lp[j]:lp[j + 1]], j] = lx[lp[j]:lp[j + 1]]
+    np.testing.assert_allclose(L, simplicial, rtol=1e-10, atol=1e-13)
+    b = np.random.default_rng(35).normal(size=(n, 3))
+    x_sn, x_simp = b.copy(), b.copy()
+    sn_solve3(*f.arrays, x_sn, np.empty_like(b))
+    ldl_solve3(lp, li, lx, d, f.arrays.perm, x_simp, np.empty_like(b))
+    assert rel_err(x_sn, x_simp) < 1e-12 and rel_err(x_sn, spsolve(a, b)) < TOL
+
+
+def test_a_value_refactor_of_wide_supernodes_is_a_fresh_factor():
+    """refactor_values on a dense matrix (every update and block solve by BLAS, in chunks) equals a fresh
+    factor of the new values, and solves them."""
+    a = dense_spd(300, 36)
+    f = SPDFactor(a)
+    a2 = dense_spd(300, 37)
+    f.refactor_values(a2.data)  # same (full) pattern, so the same value order
+    fresh = SPDFactor(a2)
+    for got, want in zip(f.arrays, fresh.arrays):
+        np.testing.assert_array_equal(got, want)
+    b = np.random.default_rng(38).normal(size=(300, 3))
+    assert rel_err(f.solve(b), np.linalg.solve(a2.toarray(), b)) < TOL
 
 
 # -- SPDFactor against spsolve ---------------------------------------------------------------------
@@ -214,20 +349,20 @@ def test_explicit_zeros_keep_their_place_in_the_pattern():
 # -- from jitted code ------------------------------------------------------------------------------
 
 @numba.njit
-def _iterate(lp, li, lx, d, perm, b, x, work, iterations):
+def _iterate(sf, rp, ri, xp, lx, d, perm, b, x, work, iterations):
     """A projective-dynamics-like loop: each right-hand side depends on the previous solution."""
     x[:] = 0.0
     for _ in range(iterations):
         for i in range(x.shape[0]):
             for c in range(3):
                 x[i, c] = b[i, c] + 0.5 * x[i, c]
-        ldl_solve3(lp, li, lx, d, perm, x, work)
+        sn_solve3(sf, rp, ri, xp, lx, d, perm, x, work)
 
 
 @numba.njit
 def _solve_packed(factor, x, work):
     """The factor passed whole, as the named tuple of SPDFactor.arrays."""
-    ldl_solve3(factor.lp, factor.li, factor.lx, factor.d, factor.perm, x, work)
+    sn_solve3(factor.sf, factor.rp, factor.ri, factor.xp, factor.lx, factor.d, factor.perm, x, work)
 
 
 def test_the_kernel_solve_called_from_jitted_code_matches_the_class():

@@ -4,15 +4,20 @@ The global step solves ``A X = B`` several times per time step with one constant
 
     A = M / h^2 + sum_s w_s (e_i - e_j)(e_i - e_j)^T        (Liu 2013, Bouaziz 2014)
 
-(n, n), n the vertex count, ``X`` and ``B`` (n, 3). :class:`SPDFactor` factors it once as ``P A P^T = L D L^T``
-with the kernels of :mod:`vfit_engine.kernels.sparse_ldl` and hands the factor's arrays to a jitted frame loop
-(:attr:`SPDFactor.arrays`, in the order :func:`~vfit_engine.kernels.sparse_ldl.ldl_solve3` takes them).
+(n, n), n the vertex count, ``X`` and ``B`` (n, 3). :class:`SPDFactor` factors it as ``P A P^T = L D L^T`` with
+the supernodal kernels of :mod:`vfit_engine.kernels.supernodal_ldl` and hands the factor's arrays to a jitted
+frame loop (:attr:`SPDFactor.arrays`, in the order :func:`~vfit_engine.kernels.supernodal_ldl.sn_solve3` takes
+them). The solver refactors new values of the same pattern almost every step (:meth:`SPDFactor.refactor_values`):
+all the pattern work (order, elimination tree, supernodes, where each value goes) is done once per pattern.
 
 The fill-reducing order is SuperLU's multiple minimum degree on ``A + A^T`` (``splu(...).perm_c`` with
-``permc_spec="MMD_AT_PLUS_A"``, symmetric mode, no pivoting), used symmetrically: on garment matrices it gave the
-least fill of natural, reverse Cuthill-McKee, minimum degree and a geometric nested dissection (issue 32's
-measurements). SuperLU computes the order only as part of a full LU, which costs most of the first factor's time
-but happens once per sparsity pattern; should it fail, reverse Cuthill-McKee takes over.
+``permc_spec="MMD_AT_PLUS_A"``, symmetric mode, no pivoting), used symmetrically, then postordered along its
+elimination tree (the same fill; each supernode's last child just before it, so small supernodes merge). On
+garment matrices it gave the least fill of natural, reverse Cuthill-McKee, minimum degree and a geometric nested
+dissection (issue 32's measurements); METIS's nested dissection (``pymetis``) was measured too and gave more (the
+100 x 100 sphere-drape grid: 622 k entries of ``L`` against 601 k; the shared suit 87 k against 85 k), so it does
+not earn a dependency. SuperLU computes the order only as part of a full LU, which costs most of the first
+factor's time but happens once per sparsity pattern; should it fail, reverse Cuthill-McKee takes over.
 """
 from collections import namedtuple
 
@@ -21,7 +26,9 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 from scipy.sparse.linalg import splu
 
-from vfit_engine.kernels.sparse_ldl import ldl_numeric, ldl_solve3, ldl_symbolic
+from vfit_engine.kernels.sparse_ldl import ldl_symbolic
+from vfit_engine.kernels.supernodal_analysis import etree_postorder, supernode_partition, supernode_rows, value_map
+from vfit_engine.kernels.supernodal_ldl import sn_numeric, sn_solve3
 
 #: The fill-reducing orders :class:`SPDFactor` knows, the default first.
 ORDERINGS = ("mmd", "rcm", "natural")
@@ -30,9 +37,11 @@ ORDERINGS = ("mmd", "rcm", "natural")
 #: different orders on either side of the diagonal, which leaves differences of a few ulps.
 SYMMETRY_RTOL = 1e-10
 
-#: The factor as :func:`~vfit_engine.kernels.sparse_ldl.ldl_solve3` takes it, before ``x`` and ``work``:
-#: ``lp`` (n + 1,) int64, ``li`` (nnz_l,) int64, ``lx`` (nnz_l,) float64, ``d`` (n,) float64, ``perm`` (n,) int64.
-LDLArrays = namedtuple("LDLArrays", "lp li lx d perm")
+#: The factor as :func:`~vfit_engine.kernels.supernodal_ldl.sn_solve3` takes it, before ``x`` and ``work``: the
+#: supernodes' first columns ``sf`` (ns + 1,) int64, row-list pointers ``rp`` (ns + 1,) int64, row lists ``ri``
+#: int32, value pointers ``xp`` (ns + 1,) int64, block values ``lx`` float64 (module docstring of the kernels),
+#: ``d`` (n,) float64, ``perm`` (n,) int64.
+LDLArrays = namedtuple("LDLArrays", "sf rp ri xp lx d perm")
 
 
 def spring_laplacian(spring_indices, weights, n, diagonal=0.0):
@@ -78,7 +87,8 @@ class SPDFactor:
         Symmetric positive definite; duplicate entries are summed. Explicit zeros are kept (a weight that is zero
         now keeps its place in the pattern) unless the pattern is unsymmetric with them.
     ordering : {"mmd", "rcm", "natural"}
-        Fill-reducing order (module docstring); "natural" is for comparisons.
+        Fill-reducing order (module docstring), postordered along its elimination tree (the same fill);
+        "natural" is for comparisons.
 
     Raises
     ------
@@ -180,7 +190,7 @@ class SPDFactor:
             c1 = min(c0 + 3, cols.shape[1])
             x[:, : c1 - c0] = cols[:, c0:c1]
             x[:, c1 - c0:] = 0.0
-            ldl_solve3(*self.arrays, x, work)
+            sn_solve3(*self.arrays, x, work)
             out[:, c0:c1] = x[:, : c1 - c0]
         return out.reshape(b.shape)
 
@@ -196,8 +206,19 @@ class SPDFactor:
 
     @property
     def nnz_l(self):
-        """Entries of ``L`` below its unit diagonal (the fill measure)."""
-        return int(self._lp[-1])
+        """Entries of ``L`` below its unit diagonal (the fill measure; the supernodes store more, :attr:`stored`)."""
+        return self._nnz_l
+
+    @property
+    def supernodes(self):
+        """Number of supernodes."""
+        return int(self._sf.shape[0] - 1)
+
+    @property
+    def stored(self):
+        """Values the supernodes' blocks hold: ``L``, ``D``, the blocks' unused upper parts and the zeros of
+        merged supernodes."""
+        return int(self._lx.shape[0])
 
     @property
     def ordering(self):
@@ -206,54 +227,86 @@ class SPDFactor:
 
     @property
     def arrays(self):
-        """:data:`LDLArrays` ``(lp, li, lx, d, perm)``: with ``x`` (n, 3) float64 (``B`` in, ``X`` out) and a
-        scratch ``work`` (n, 3) float64, ``ldl_solve3(*arrays, x, work)`` solves, also from jitted code."""
-        return LDLArrays(self._lp, self._li, self._lx, self._d, self._perm)
+        """:data:`LDLArrays` ``(sf, rp, ri, xp, lx, d, perm)``: with ``x`` (n, 3) float64 (``B`` in, ``X`` out)
+        and a scratch ``work`` (n, 3) float64, ``sn_solve3(*arrays, x, work)`` solves, also from jitted code."""
+        return LDLArrays(self._sf, self._rp, self._ri, self._xp, self._lx, self._d, self._perm)
 
     def _has_pattern(self, a):
         return (self._pattern is not None and a.shape[0] == self.n
                 and np.array_equal(a.indptr, self._pattern[0]) and np.array_equal(a.indices, self._pattern[1]))
 
     def _analyse(self, a):
-        """Order, the upper triangle of P A P^T and the symbolic factor; allocate the numeric arrays."""
+        """Order (postordered), the upper triangle of P A P^T, its supernodes and where each value goes;
+        allocate the numeric arrays."""
         mirror = _transpose_index(a)
         if mirror is None:
             raise ValueError(f"A is not symmetric: {_unmatched_entry(a)}")
         n = a.shape[0]
         perm, self._ordering = _order(a, self._asked)
-        pinv = np.empty(n, dtype=np.int64)
-        pinv[perm] = np.arange(n)
-        row = pinv[a.indices]
-        col = pinv[np.repeat(np.arange(n), np.diff(a.indptr))]
-        keep = np.flatnonzero(row <= col)
-        # the entries of A that make up C = P A P^T's upper triangle, in C's CSC order (column, then row)
-        c_index = keep[np.lexsort((row[keep], col[keep]))]
-        self._c_index = c_index
-        self._cp = np.concatenate([[0], np.cumsum(np.bincount(col[c_index], minlength=n))]).astype(np.int64)
-        self._ci = np.ascontiguousarray(row[c_index])
-        self._cx = np.empty(c_index.shape[0])
+        parent, _ = _etree(*_upper_triangle(a, perm)[1:])
+        post = np.empty(n, dtype=np.int64)
+        etree_postorder(parent, post, *(np.empty(n, dtype=np.int64) for _ in range(3)))
+        perm = perm[post]
+        c_index, cp, ci = _upper_triangle(a, perm)
+        parent, count = _etree(cp, ci)
+        sf, m = np.empty(n + 1, dtype=np.int64), np.empty(n, dtype=np.int64)
+        ns = supernode_partition(parent, count, sf, m, np.empty(n, dtype=np.int64))
+        sf, m = sf[:ns + 1].copy(), m[:ns].copy()
+        w = np.diff(sf)
+        sn_of = np.repeat(np.arange(ns, dtype=np.int64), w)
+        rp = np.concatenate([[0], np.cumsum(m)]).astype(np.int64)
+        xp = np.concatenate([[0], np.cumsum(m * w)]).astype(np.int64)
+        ri = np.empty(rp[-1], dtype=np.int32)
+        bad = supernode_rows(cp, ci, parent, sn_of, sf, rp, ri, np.empty(n, dtype=np.int64),
+                             np.empty(ns, dtype=np.int64), np.empty(ns, dtype=np.int64))
+        if bad >= 0:
+            raise RuntimeError(f"supernode {bad}'s rows do not match its partition (a bug of the analysis)")
+        dst = np.empty(ci.shape[0], dtype=np.int64)
+        value_map(cp, ci, sn_of, sf, rp, ri, xp, dst)
+        self._sf, self._rp, self._ri, self._xp, self._sn_of = sf, rp, ri, xp, sn_of
+        self._src, self._dst = c_index, dst
         self._perm = np.ascontiguousarray(perm, dtype=np.int64)
-        self._parent = np.empty(n, dtype=np.int64)
-        count = np.empty(n, dtype=np.int64)
-        self._flag, self._stack, self._fill = (np.empty(n, dtype=np.int64) for _ in range(3))
-        ldl_symbolic(self._cp, self._ci, self._parent, count, self._flag)
-        self._lp = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
-        self._li = np.empty(self._lp[-1], dtype=np.int64)
-        self._lx = np.empty(self._lp[-1])
+        self._nnz_l = int(count.sum())
+        self._lx = np.empty(xp[-1])
         self._d = np.empty(n)
-        self._y = np.zeros(n)
+        rows, width = int(m.max()), int(w.max())
+        # scratch of sn_numeric: a row map, the descendants' lists, a transposed block, a row, a product
+        self._relmap, self._head, self._link, self._ptr = (np.empty(k, dtype=np.int64) for k in (n, ns, ns, ns))
+        self._tbuf, self._wrow = np.empty(int((m * w).max())), np.empty(rows)
+        self._relb, self._wbuf = np.empty(rows, dtype=np.int64), np.empty(rows * width)
         self._mirror = mirror
         self._pattern = (a.indptr.copy(), a.indices.copy())
 
     def _factor(self, data):
-        np.take(data, self._c_index, out=self._cx)
-        self._y[:] = 0.0  # a failed factor leaves its scatter vector dirty
-        k = ldl_numeric(self._cp, self._ci, self._cx, self._lp, self._parent, self._li, self._lx, self._d,
-                        self._y, self._flag, self._stack, self._fill)
+        k = sn_numeric(self._sf, self._rp, self._ri, self._xp, self._lx, self._d, data, self._src, self._dst,
+                       self._sn_of, self._relmap, self._head, self._link, self._ptr, self._tbuf, self._wrow,
+                       self._relb, self._wbuf)
         self._valid = k < 0
         if k >= 0:
             raise ValueError(f"A is not positive definite: pivot {k} of its LDL^T (row {self._perm[k]} of A, "
                              f"order {self._ordering}) is {self._d[k]:.6g}")
+
+
+def _upper_triangle(a, perm):
+    """(c_index, cp, ci): the entries of canonical CSC ``a`` that make up C = P A P^T's upper triangle, in C's CSC
+    order (column, then row), and that triangle's pattern (int64)."""
+    n = a.shape[0]
+    pinv = np.empty(n, dtype=np.int64)
+    pinv[perm] = np.arange(n)
+    row = pinv[a.indices]
+    col = pinv[np.repeat(np.arange(n), np.diff(a.indptr))]
+    keep = np.flatnonzero(row <= col)
+    c_index = keep[np.lexsort((row[keep], col[keep]))]
+    cp = np.concatenate([[0], np.cumsum(np.bincount(col[c_index], minlength=n))]).astype(np.int64)
+    return c_index.astype(np.int64), cp, np.ascontiguousarray(row[c_index])
+
+
+def _etree(cp, ci):
+    """(parent, count): the elimination tree of C and its columns' counts below the diagonal."""
+    n = cp.shape[0] - 1
+    parent, count = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    ldl_symbolic(cp, ci, parent, count, np.empty(n, dtype=np.int64))
+    return parent, count
 
 
 def _canonical_csc(A):

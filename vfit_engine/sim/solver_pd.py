@@ -29,7 +29,7 @@ from vfit_engine.kernels.contact_make import make_contacts
 from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
 from vfit_engine.kernels.pd import chebyshev, contact_forces, pd_rhs, soft_push
-from vfit_engine.kernels.sparse_ldl import ldl_solve3
+from vfit_engine.kernels.supernodal_ldl import sn_solve3
 from vfit_engine.sim.bending import hinge_gradient_norms
 from vfit_engine.sim.constraints import KIND_ANGLE, KIND_BEND, build_constraints, stretch_rigidity
 from vfit_engine.sim.contact_points import body_sag, contact_points
@@ -334,7 +334,7 @@ class SolverPD:
             self._c_h, self._c_list, self._c_n2, self._c_nq2, self._c_h2, 0, self.points.count, self._body_vel,
             self._sphere_vel, self._c_u, self._body_sag, self._sag_max, self._ground)
         self.contact_queries += queries
-        lp, li, lx, d, perm = self._factor.arrays
+        factor = self._factor.arrays
         np.copyto(self._xprev, x)
         omega = 1.0
         for k in range(int(st.iterations)):
@@ -346,7 +346,7 @@ class SolverPD:
                    self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
                    self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm)
             np.copyto(self._xh, self._b)
-            ldl_solve3(lp, li, lx, d, perm, self._xh, self._work)
+            sn_solve3(*factor, self._xh, self._work)
             omega = chebyshev(x, self._xh, self._xprev, k, int(st.chebyshev_delay), float(st.chebyshev_rho), omega)
         soft_push(self._gap, self._inv_mass, self._w_c, dt * dt, self._push, self._lam, self._nrm)
         for _ in range(int(st.contact_sweeps)):
