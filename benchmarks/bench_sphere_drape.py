@@ -118,17 +118,18 @@ def penetration_mm(pos, tris):
 
 
 def main(argv=None):
+    from vfit_engine.sim.solver_settings import PDSettings
     from vfit_engine.sim.solver_verlet import VerletSettings
 
-    defaults = VerletSettings()
+    defaults, pd = VerletSettings(), PDSettings()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=100, help="particles per side")
     ap.add_argument("--solver", choices=("verlet", "pd"), default="verlet",
                     help="the Gauss-Seidel solver or projective dynamics (default %(default)s)")
-    ap.add_argument("--substeps", type=int, default=None, help="substeps (pd: steps) a frame (default 8; pd 1)")
+    ap.add_argument("--substeps", type=int, default=None, help=f"substeps (pd: steps) a frame (default {defaults.substeps}; pd {pd.substeps})")
     ap.add_argument("--iterations", type=int, default=None,
                     help="constraint and contact sweeps per substep, or pd iterations a step (default: the "
-                         f"solver's, {defaults.iterations}; pd 10)")
+                         f"solver's, {defaults.iterations}; pd {pd.iterations})")
     ap.add_argument("--material", default="cotton")
     ap.add_argument("--spacing", type=float, default=0.015,
                     help="spacing of the contact points over the cloth's triangles, m (0: vertices only; "
@@ -145,7 +146,7 @@ def main(argv=None):
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args(argv)
     if args.substeps is None:
-        args.substeps = 1 if args.solver == "pd" else 8
+        args.substeps = (pd if args.solver == "pd" else defaults).substeps
 
     t0 = time.perf_counter()
     import numba  # (import time is not compile time)

@@ -151,5 +151,7 @@ def projective(settings=None, **solver):
     pd = PDSettings(**{f: getattr(old, f) for f in ("gravity", "air_damping", "slack", "compression", "bend_limit",
                                                      "shear_limit_deg", "shear_restore")}, **solver)
     scale = old.substeps / pd.substeps
+    # no switch to more iterations for a slow drape (``slow_iterations``): the Gauss-Seidel sweeps' cure; here more
+    # iterations a step swung the contact forces further (a stretched suit moved 3.5 mm a frame at 30, 0.7 at 10)
     return replace(settings, solver=pd, push_start=settings.push_start * scale, push_end=settings.push_end * scale,
-                   slow_iterations=max(settings.slow_iterations, pd.iterations))
+                   slow_iterations=pd.iterations)

@@ -29,6 +29,7 @@ from vfit_engine.kernels.contact_make import make_contacts
 from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
 from vfit_engine.kernels.pd import chebyshev, contact_forces, pd_rhs, soft_push
+from vfit_engine.kernels.pd_matrix import acting_bands, band_matrix
 from vfit_engine.kernels.supernodal_ldl import sn_solve3
 from vfit_engine.sim.bending import hinge_gradient_norms
 from vfit_engine.sim.constraints import KIND_ANGLE, KIND_BEND, build_constraints, stretch_rigidity
@@ -206,36 +207,26 @@ class SolverPD:
     def _reweight(self, x):
         """With ``PDSettings.band_weight < 1``: the bands in the matrix weighed by whether they act at ``x`` (a yarn
         inside its free band has no stiffness; its full weight in the matrix holds the cloth where it is at each
-        iteration); the matrix refactored when that changes. The step's element weights and the pins' couplings
-        follow."""
-        share = float(self.settings.band_weight)
+        iteration); the matrix refactored when that changes (:mod:`vfit_engine.kernels.pd_matrix`). The step's
+        element weights and the pins' couplings follow."""
         pr = self._pairs
-        if share >= 1.0 or not pr["band"].any():
+        if float(self.settings.band_weight) >= 1.0 or not pr["band"].any():
             return
-        i, j = pr["i"], pr["j"]
-        length = np.linalg.norm(x[j] - x[i], axis=1)
-        active = ~pr["band"] | (length <= pr["lo"] * 1.002) | (length >= pr["hi"] * 0.998)
-        if pr["active"] is not None and np.array_equal(active, pr["active"]):
-            return
-        pr["active"] = active
-        w = np.where(active, pr["w"], share * pr["w"])
-        n = self.model.particle_count
-        e_w = self._arrays[7]
-        e_w[:] = w[:e_w.size]
-        self._arrays[-1][:] = w[pr["pair_of"]]
-        free, both = pr["free"], pr["both"]
-        diag = np.where(free, pr["base"] + np.bincount(i, w, n) + np.bincount(j, w, n), 1.0)
-        if pr.get("at") is None:  # where each element's entries lie in the factor's values (a fixed pattern)
-            pr["at"] = (self._factor.positions(i[both], j[both]), self._factor.positions(j[both], i[both]),
-                        self._factor.positions(np.arange(n), np.arange(n)))
-        at_ij, at_ji, at_d = pr["at"]
-        data = np.zeros(self._factor.nnz)
-        np.add.at(data, at_ij, -w[both])
-        np.add.at(data, at_ji, -w[both])
-        data[at_d] += diag + self._w_c
+        first = pr["at"] is None
+        if first:  # where each element's entries lie in the factor's values (a fixed pattern)
+            i, j, both, n = pr["i"], pr["j"], pr["both"], self.model.particle_count
+            at_ij, at_ji = np.full(i.size, -1, np.int64), np.full(i.size, -1, np.int64)
+            at_ij[both] = self._factor.positions(i[both], j[both])
+            at_ji[both] = self._factor.positions(j[both], i[both])
+            pr["at"] = (at_ij, at_ji, self._factor.positions(np.arange(n), np.arange(n)).astype(np.int64))
+            pr["data"] = np.zeros(self._factor.nnz)
         # every step the set changes a little (bands at their ends): refactoring only past a 2 % change let the
         # suit settle in 191 frames against 105, slower in all
-        self._factor.refactor_values(data)
+        if not acting_bands(x, pr["i"], pr["j"], pr["lo"], pr["hi"], pr["band"], pr["active"]) and not first:
+            return
+        band_matrix(pr["i"], pr["j"], pr["w"], pr["active"], float(self.settings.band_weight), pr["free"],
+                    pr["base"], self._w_c, *pr["at"], pr["data"], self._arrays[7], self._arrays[-1], pr["pair_of"])
+        self._factor.refactor_values(pr["data"])
         self.refactors += 1
 
     def matrix(self):
@@ -252,7 +243,7 @@ class SolverPD:
         self._factor = SPDFactor(a)
         self._w_c = np.where(self._inv_mass > 0, self._w_lo, 0.0)
         self._rho = self.settings.contact_rho * (self._mh2 + self._w_c)
-        self._pairs["active"] = None
+        self._pairs["active"] = np.ones(self._pairs["i"].size, dtype=np.bool_)
         self._pairs["at"] = None
         self._dt = dt
 
@@ -327,13 +318,13 @@ class SolverPD:
         advance_in_place(x, xp, self._inv_mass, self._zero_f, self._gravity, keep, dt * dt)
         move_pins(x, pin_idx, pin_from, pin_to, alpha)
         np.copyto(self._y, x)
-        self._reweight(x)
         n_c, queries = make_contacts(
             x, self._inv_mass, self._pt_v, self._pt_b, self._pt_skin, self._spheres, self._grid, self.body is not None,
             float(c.reach), float(self.max_push), float(c.reuse), self._p_last, self._d_last, self._c_n, self._c_nq,
             self._c_h, self._c_list, self._c_n2, self._c_nq2, self._c_h2, 0, self.points.count, self._body_vel,
             self._sphere_vel, self._c_u, self._body_sag, self._sag_max, self._ground)
         self.contact_queries += queries
+        self._reweight(x)
         factor = self._factor.arrays
         np.copyto(self._xprev, x)
         omega = 1.0

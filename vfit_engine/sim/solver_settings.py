@@ -120,8 +120,8 @@ class PDSettings(VerletSettings):
         diagonal, :mod:`vfit_engine.kernels.pd`).
     """
 
-    substeps: int = 1
-    iterations: int = 10
+    substeps: int = 2
+    iterations: int = 5
     contact_weight: float = 0.01
     contact_rho: float = 1.0
     angle_weight: float = 0.05

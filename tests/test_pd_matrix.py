@@ -1,0 +1,61 @@
+"""The projective-dynamics matrix re-weighed by acting bands (:mod:`vfit_engine.kernels.pd_matrix`) against a
+NumPy assembly of the same matrix, on seeded data."""
+import numpy as np
+import pytest
+from scipy import sparse
+
+from vfit_engine.kernels.pd_matrix import acting_bands, band_matrix
+
+
+def _case(seed, n=40, pairs=120):
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, 3)) * 0.05
+    pi = rng.integers(0, n, pairs)
+    pj = (pi + 1 + rng.integers(0, n - 1, pairs)) % n  # never i == j
+    length = np.linalg.norm(x[pj] - x[pi], axis=1)
+    # a third of the bands around their pair's length (free), a third stretched past their end, a third squeezed
+    scale = rng.choice([1.0, 0.8, 1.3], pairs)
+    lo, hi = 0.9 * length * scale, 1.1 * length * scale
+    band = rng.random(pairs) < 0.8
+    w = rng.uniform(1.0, 50.0, pairs)
+    free = rng.random(n) < 0.85
+    base = rng.uniform(0.1, 2.0, n)
+    w_c = np.where(free, 0.3, 0.0)
+    return x, pi, pj, lo, hi, band, w, free, base, w_c
+
+
+def _reference(x, pi, pj, lo, hi, band, w, share, free, base, w_c):
+    length = np.linalg.norm(x[pj] - x[pi], axis=1)
+    active = ~band | (length <= lo * 1.002) | (length >= hi * 0.998)
+    we = np.where(active, w, share * w)
+    n = x.shape[0]
+    diag = np.where(free, base + np.bincount(pi, we, n) + np.bincount(pj, we, n) + w_c, 1.0)
+    both = free[pi] & free[pj]
+    a = sparse.coo_matrix((np.concatenate([-we[both], -we[both], diag]),
+                           (np.concatenate([pi[both], pj[both], np.arange(n)]),
+                            np.concatenate([pj[both], pi[both], np.arange(n)]))), shape=(n, n)).toarray()
+    return active, we, a
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_reweighed_matrix_matches_the_numpy_assembly(seed):
+    x, pi, pj, lo, hi, band, w, free, base, w_c = _case(seed)
+    n, share = x.shape[0], 0.3
+    want_active, want_w, want_a = _reference(x, pi, pj, lo, hi, band, w, share, free, base, w_c)
+    # the factor's value array: here the dense matrix's entries in row-major order
+    at_ij = np.where(free[pi] & free[pj], pi * n + pj, -1)
+    at_ji = np.where(free[pi] & free[pj], pj * n + pi, -1)
+    at_d = np.arange(n) * (n + 1)
+    data = np.full(n * n, np.nan)
+    active = np.ones(pi.size, dtype=np.bool_)
+    pair_of = np.array([3, 7, 11], dtype=np.int64)
+    e_w, pin_w = np.zeros(50), np.zeros(3)
+    changed = acting_bands(x, pi, pj, lo, hi, band, active)
+    assert changed == (not want_active.all())
+    np.testing.assert_array_equal(active, want_active)
+    assert 0 < np.count_nonzero(band & ~active) < np.count_nonzero(band)  # both kinds are in the case
+    band_matrix(pi, pj, w, active, share, free, base, w_c, at_ij, at_ji, at_d, data, e_w, pin_w, pair_of)
+    np.testing.assert_allclose(data.reshape(n, n), want_a, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(e_w, want_w[:50], rtol=1e-15)
+    np.testing.assert_allclose(pin_w, want_w[pair_of], rtol=1e-15)
+    assert not acting_bands(x, pi, pj, lo, hi, band, active)  # the same iterate: no change, nothing to refactor
