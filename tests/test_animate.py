@@ -322,3 +322,32 @@ def test_preview_gif_draws_strain_on_the_still_previews_scale(monkeypatch, tmp_p
         assert (seen["vmin"], seen["vmax"], seen["marks"]) == (vmin, vmax, marks) and marks
         assert (seen["cmap"], seen["label"], seen["unit"]) == tuple(PICTURE_MAPS["strain"][k]
                                                                     for k in ("cmap", "label", "unit"))
+
+
+def test_preview_gif_draws_the_polygons_as_the_still_preview_does(monkeypatch, tmp_path):
+    """Issue 33 section 4: colours run smoothly over the cloth. The GIF draws each frame through the still preview's
+    :func:`~vfit_engine.fit.outputs.display_mesh` (every quad fanned from its centre through its edges' midpoints,
+    each with the mean of its corners' strain), not the quads split along one diagonal."""
+    from types import SimpleNamespace
+
+    from vfit_engine.animate import outputs
+    from vfit_engine.drape.metrics import vertex_strain
+    from vfit_engine.fit.outputs import display_mesh
+    from vfit_engine.io.meshdata import MeshData
+    from vfit_engine.sim.materials import get_material
+    from vfit_engine.sim.springs import grid_polygons
+
+    pos, fv, fo = grid_polygons(4, 3, 0.3, 0.2)
+    mesh = MeshData(pos, fo, fv)
+    seen = {}
+    monkeypatch.setattr(outputs, "write_gif", lambda path, *args, **kw: seen.update(args=args))
+    setup = SimpleNamespace(garment=SimpleNamespace(mesh=mesh), material=get_material("cotton"))
+    cloth = np.stack([pos, pos * [1.05, 1.0, 1.0]])
+    outputs.write_preview_gif(tmp_path / "p.gif", setup, SimpleNamespace(body_tris=None), [None, None], cloth, 30.0)
+    _, _, frames, tris, values = seen["args"]
+    for k in range(2):
+        want_v, want_t, want_c = display_mesh(mesh, cloth[k], vertex_strain(mesh, cloth[k]))
+        np.testing.assert_array_equal(frames[k], want_v)
+        np.testing.assert_array_equal(tris, want_t)
+        np.testing.assert_array_equal(values[k], want_c)
+    assert len(tris) == 4 * 2 * (len(fo) - 1)  # two triangles a corner, four corners a quad

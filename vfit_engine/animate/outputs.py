@@ -23,7 +23,7 @@ from vfit_engine.animation import write_gif
 from vfit_engine.body.bodyio import body_mesh
 from vfit_engine.body.model import N_BODY
 from vfit_engine.drape.metrics import vertex_strain
-from vfit_engine.fit.outputs import PICTURE_MAPS, map_range
+from vfit_engine.fit.outputs import PICTURE_MAPS, display_mesh, map_range
 from vfit_engine.io.gltf import ScenePart, write_animation_glb
 
 #: The quality bars of every frame (module docstring).
@@ -120,11 +120,14 @@ def write_preview_gif(path, setup, model, bodies, cloth, fps):
     fabric's wearable stretch, marked: :func:`vfit_engine.fit.outputs.map_range`), so the two pictures read alike."""
     pick = np.unique(np.linspace(0, len(cloth) - 1, min(len(cloth), GIF_FRAMES)).round().astype(int))
     mesh = setup.garment.mesh
-    strain = np.stack([vertex_strain(mesh, cloth[k]) for k in pick])
+    # drawn as the still preview draws it (fit.outputs.display_mesh: every polygon fanned from its centre through
+    # its edges' midpoints), so the colours run smoothly over a quad instead of splitting along one diagonal
+    shown = [display_mesh(mesh, cloth[k], vertex_strain(mesh, cloth[k])) for k in pick]
     labels = [f"{k / fps:.2f} s" for k in pick]
     spec = PICTURE_MAPS["strain"]
     vmin, vmax, marks = map_range("strain", setup.material)
-    return write_gif(path, bodies[pick[0]], model.body_tris, [cloth[k] for k in pick], mesh.triangles(),
-                     strain, fps=min(max(fps * len(pick) / len(cloth), 1.0), 50.0), view=("front", "side"),
+    return write_gif(path, bodies[pick[0]], model.body_tris, [v for v, _, _ in shown], shown[0][1],
+                     np.stack([c for _, _, c in shown]), fps=min(max(fps * len(pick) / len(cloth), 1.0), 50.0),
+                     view=("front", "side"),
                      size=(800, 600), labels=labels, body_frames=[bodies[k] for k in pick], label=spec["label"],
                      unit=spec["unit"], cmap=spec["cmap"], vmin=vmin, vmax=vmax, marks=marks)
