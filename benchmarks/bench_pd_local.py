@@ -41,8 +41,10 @@ SUIT = "female_casualsuit01"
 OLD = "b29ff13"
 #: pd_rhs's arguments: the iterate, the outputs (b, gap, count, f_lag) and the lag flag; contact_forces' outputs
 #: (lam, nrm, plane and scratch)
-X, B, LAG = 0, 40, 44
-RHS_OUT = (40, 41, 42, 43)
+X, B, LAG = 0, 38, 42
+RHS_OUT = (38, 39, 40, 41)
+#: Where b29ff13's pd_rhs took the corners' band in radians (a_lo, a_hi; now only their cosines, at 13 and 14)
+OLD_ANGLES = 15
 FORCES_OUT = (12, 13, 14, 15, 16, 17)
 LAM = 12
 
@@ -121,6 +123,15 @@ def suit_case(frames):
     return recorded_calls(lambda: run_drape(setup, settings))
 
 
+def _for(label, args):
+    """``pd_rhs``'s arguments in the layout of ``label``'s kernel: b29ff13's also took the corners' band in radians
+    and no hinge scratch (the same arrays otherwise, so its outputs land where the new layout reads them)."""
+    if label != "old":
+        return args
+    angles = [np.arccos(np.clip(args[k], -1.0, 1.0)) for k in (13, 14)]
+    return args[:OLD_ANGLES] + angles + args[OLD_ANGLES:-1]
+
+
 def _copy(args, outputs):
     """``args`` with copies of the arrays the kernel writes (``outputs``); the inputs shared, as the solver's
     iterations share them (copies of every array for each variant would time their cache misses)."""
@@ -149,14 +160,14 @@ def measure(case, last, kernels, repeat):
         for lag in (False, True):
             args = _copy(rhs, RHS_OUT)
             args[LAG] = lag
-            calls[(label, "fresh" if not lag else "lagged")] = (lambda m=module, a=args: m.pd_rhs(*a))
+            calls[(label, "fresh" if not lag else "lagged")] = (lambda m=module, a=_for(label, args): m.pd_rhs(*a))
         args = _copy(forces, FORCES_OUT)
         calls[(label, "forces")] = (lambda m=module, a=args: m.contact_forces(*a))
         # the outputs of one call each on fresh copies of the same arguments
         for lag in (False, True):
             args = _copy(rhs, RHS_OUT)
             args[LAG] = lag
-            module.pd_rhs(*args)
+            module.pd_rhs(*_for(label, args))
             outputs[(label, lag)] = args[B]
         args = _copy(forces, FORCES_OUT)
         module.contact_forces(*args)

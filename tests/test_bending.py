@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from vfit_engine.sim.springs import grid_polygons
-from vfit_engine.kernels.bending import (HINGE_BLOCK, add_elastic_hinge_forces, atan2_select,
+from vfit_engine.kernels.bending import (HINGE_BLOCK, add_elastic_hinge_forces, atan2_select, hinge_scratch,
                                          eval_hinge_forces, project_hinges)
 from vfit_engine.sim.bending import bending_energy, build_hinges, hinge_angles
 from vfit_engine.textile.specimen import disc
@@ -53,7 +53,7 @@ def test_elastic_hinge_forces_are_the_undamped_hinge_forces():
     idx = np.ascontiguousarray(h.indices, dtype=np.int64)
     h0, h1 = 3, h.count - 5
     got = np.zeros_like(x)
-    add_elastic_hinge_forces(x, idx, k, rest, got, h0, h1)
+    add_elastic_hinge_forces(x, idx, k, rest, got, h0, h1, hinge_scratch())
     want = eval_hinge_forces(x, x, 1.0, idx[h0:h1], k[h0:h1], np.zeros(h1 - h0), rest[h0:h1])
     # the same operations but the angle's (within 2 ulp of math.atan2): equal to the rounding
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14 * np.abs(want).max())
@@ -61,9 +61,9 @@ def test_elastic_hinge_forces_are_the_undamped_hinge_forces():
     np.testing.assert_allclose(got, ref, atol=1e-9 * np.abs(ref).max(), rtol=1e-5)
     x[idx[3, 2]] = x[idx[3, 0]]  # hinge 3's first triangle collapsed: no normal
     alone = np.zeros_like(x)
-    add_elastic_hinge_forces(x, idx, k, rest, alone, 3, 4)
+    add_elastic_hinge_forces(x, idx, k, rest, alone, 3, 4, hinge_scratch())
     assert np.all(alone == 0.0)
-    add_elastic_hinge_forces(x, idx, k, rest, alone, 4, 5)
+    add_elastic_hinge_forces(x, idx, k, rest, alone, 4, 5, hinge_scratch())
     assert np.any(alone != 0.0)
 
 

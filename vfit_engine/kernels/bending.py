@@ -138,18 +138,21 @@ def _block_angles(le2, q0, q1, ce, cs, ae, be, ang, nb):
         q1[m] = le / q1[m]
 
 
+def hinge_scratch():
+    """The scratch :func:`add_elastic_hinge_forces` takes: (14, :data:`HINGE_BLOCK`) float64, allocated once by
+    its caller (no allocation in a step loop)."""
+    return np.empty((14, HINGE_BLOCK))
+
+
 @njit
-def add_elastic_hinge_forces(x, hi, hk, hrest, f_out, h0, h1):
+def add_elastic_hinge_forces(x, hi, hk, hrest, f_out, h0, h1, work):
     """Add the elastic forces ``-k (theta - theta0) d theta / d x_m`` of hinges ``h0 .. h1 - 1`` into ``f_out``
     (n, 3), N: :func:`add_hinge_forces` without damping (the projective-dynamics local step evaluates the hinges at
     an iterate, with no velocity), without its rate and with the hinges taken in blocks of :data:`HINGE_BLOCK`
     whose roots, divisions and angles vectorise (:func:`_block_angles`): the sphere drape's 58 k hinges in 1.7 ms
     against 3.9 (3.2 with ``kd = 0``), the suit's 12.5 k in 0.55 against 1.1. The forces are
-    :func:`add_hinge_forces`' but for its angle's rounding (within 2 ulp)."""
-    b = HINGE_BLOCK
-    le2, q0, q1, ce = np.empty(b), np.empty(b), np.empty(b), np.empty(b)
-    cs, ae, be, ang = np.empty(b), np.empty(b), np.empty(b), np.empty(b)
-    nrm = np.empty((HINGE_BLOCK, 6))
+    :func:`add_hinge_forces`' but for its angle's rounding (within 2 ulp). ``work``: :func:`hinge_scratch`."""
+    le2, q0, q1, ce, cs, ae, be, ang = work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7]
     for start in range(h0, h1, HINGE_BLOCK):
         nb = min(HINGE_BLOCK, h1 - start)
         for m in range(nb):
@@ -168,7 +171,7 @@ def add_elastic_hinge_forces(x, hi, hk, hrest, f_out, h0, h1):
             cs[m] = n0x * n1x + n0y * n1y + n0z * n1z
             ae[m] = ax * ex + ay * ey + az * ez
             be[m] = bx * ex + by * ey + bz * ez
-            nrm[m, 0], nrm[m, 1], nrm[m, 2], nrm[m, 3], nrm[m, 4], nrm[m, 5] = n0x, n0y, n0z, n1x, n1y, n1z
+            work[8, m], work[9, m], work[10, m], work[11, m], work[12, m], work[13, m] = n0x, n0y, n0z, n1x, n1y, n1z
         _block_angles(le2, q0, q1, ce, cs, ae, be, ang, nb)
         for m in range(nb):
             if le2[m] == 0.0:
@@ -180,8 +183,8 @@ def add_elastic_hinge_forces(x, hi, hk, hrest, f_out, h0, h1):
             elif d < -math.pi:
                 d += 2.0 * math.pi
             s0, s1, t2, t3 = q0[m], q1[m], ae[m], be[m]
-            g2x, g2y, g2z = -s0 * nrm[m, 0], -s0 * nrm[m, 1], -s0 * nrm[m, 2]
-            g3x, g3y, g3z = -s1 * nrm[m, 3], -s1 * nrm[m, 4], -s1 * nrm[m, 5]
+            g2x, g2y, g2z = -s0 * work[8, m], -s0 * work[9, m], -s0 * work[10, m]
+            g3x, g3y, g3z = -s1 * work[11, m], -s1 * work[12, m], -s1 * work[13, m]
             g1x, g1y, g1z = -t2 * g2x - t3 * g3x, -t2 * g2y - t3 * g3y, -t2 * g2z - t3 * g3z
             g0x, g0y, g0z = -(g1x + g2x + g3x), -(g1y + g2y + g3y), -(g1z + g2z + g3z)
             mag = hk[h] * d

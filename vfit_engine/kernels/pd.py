@@ -242,9 +242,9 @@ def contact_forces(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list,
 
 
 @njit
-def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi,
-           a_w, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, pin_idx, pin_ptr, pin_nbr, pin_w, pts_v, pts_b, c_n, c_h,
-           c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count, f_lag, lag, lam, nrm):
+def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_w, s_i, s_j,
+           s_lo, s_hi, s_w, h_i, h_k, h_rest, pin_idx, pin_ptr, pin_nbr, pin_w, pts_v, pts_b, c_n, c_h, c_n2, c_nq2,
+           c_h2, c_list, n_c, w_c, b, gap, count, f_lag, lag, lam, nrm, hinge_work):
     """The local step (module docstring): ``b`` (n, 3) for the global solve at the iterate ``x`` (n, 3) m.
 
     Parameters
@@ -259,9 +259,9 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
         The diagonal that carries the forces outside ``A``.
     e_i, e_j, e_lo, e_hi, e_w : (E,)
         Distance bands in ``A``: ends, band (m) and weight (N/m).
-    a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_lo, a_hi, a_w : (K,)
-        Corner angle bands: arms' ends, corner, the cosines of the band's ends, the band (rad: its cosines are what
-        the kernel reads) and weight (N/m).
+    a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_w : (K,)
+        Corner angle bands: arms' ends, corner, the cosines of the band's smallest and largest angle and weight
+        (N/m).
     s_i, s_j, s_lo, s_hi, s_w : (F,)
         One-sided springs outside ``A`` (bend limits, explicit springs): ends, band (m), stiffness (N/m).
     h_i, h_k, h_rest : (H, 4), (H,), (H,)
@@ -279,10 +279,12 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
         kept in ``f_lag`` at an earlier iterate of the step are used (the hinges cost about as much as the rest of
         the local step, and are soft: every other iteration is enough), else they are evaluated here and kept
         there.
+    hinge_work : (14, HINGE_BLOCK)
+        Scratch of the hinges (:func:`vfit_engine.kernels.bending.hinge_scratch`).
     """
     n = x.shape[0]
     if not lag:
-        _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f_lag)
+        _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f_lag, hinge_work)
     for i in range(n):
         for c in range(3):
             b[i, c] = mh2[i] * y[i, c] + f_lag[i, c]
@@ -308,7 +310,7 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
 
 
 @njit
-def _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f):
+def _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f, hinge_work):
     """``f`` (n, 3) N: ``D x`` plus the forces of the elements outside ``A`` at ``x`` (module docstring)."""
     for i in range(x.shape[0]):
         for c in range(3):
@@ -318,7 +320,7 @@ def _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f):
         px, py, pz = _band(x, i, j, s_lo[e], s_hi[e])
         # the spring's force at the iterate: w (p - d) on j, its opposite on i
         _scatter(f, i, j, s_w[e], px - (x[j, 0] - x[i, 0]), py - (x[j, 1] - x[i, 1]), pz - (x[j, 2] - x[i, 2]))
-    add_elastic_hinge_forces(x, h_i, h_k, h_rest, f, 0, h_i.shape[0])
+    add_elastic_hinge_forces(x, h_i, h_k, h_rest, f, 0, h_i.shape[0], hinge_work)
 
 
 @njit

@@ -25,6 +25,7 @@ import numpy as np
 from scipy import sparse
 
 from vfit_engine.collide.body_mesh import empty_grid
+from vfit_engine.kernels.bending import hinge_scratch
 from vfit_engine.kernels.contact_make import make_contacts
 from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
@@ -73,6 +74,7 @@ class SolverPD:
         self._count = np.zeros(n)
         self._f_lag = np.zeros((n, 3))
         self._work = np.zeros((n, 3))
+        self._hinge_work = hinge_scratch()
         self._lam, self._nrm, self._plane = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3))
         self._acc_g, self._acc_n, self._acc_w = np.zeros(n), np.zeros((n, 3)), np.zeros(n)
         self.refactors = 0
@@ -193,15 +195,16 @@ class SolverPD:
         i64 = np.int64
         arrays = (c(mh2), self._inv_mass, c(np.where(free, d_off, 0.0)), c(e_i, i64), c(e_j, i64),
                   c(e_lo), c(e_hi), c(e_w), c(con.i[ang], i64), c(con.j[ang], i64),
-                  c(con.corner[ang], i64), c(np.cos(con.t_lo[ang])), c(np.cos(con.t_hi[ang])), c(con.t_lo[ang]),
-                  c(con.t_hi[ang]), c(a_w), c(s_i, i64), c(s_j, i64),
+                  c(con.corner[ang], i64), c(np.cos(con.t_lo[ang])), c(np.cos(con.t_hi[ang])), c(a_w),
+                  c(s_i, i64), c(s_j, i64),
                   c(s_lo), c(s_hi), c(s_w), c(h_i, i64), c(h_k), c(h_rest), self._pins, pin_ptr,
                   c(fp[order], i64), c(fw[order]))
         band = np.zeros(pw.size, dtype=bool)
         band[:e_i.size] = e_lo < e_hi
         self._pairs = dict(i=pi, j=pj, w=pw, band=band, lo=np.concatenate([e_lo, np.zeros(2 * ang.size)]),
                            hi=np.concatenate([e_hi, np.zeros(2 * ang.size)]), both=both, base=np.where(
-                               free, mh2 + d_off, 1.0), free=free, pair_of=pair_of, active=None)
+                               free, mh2 + d_off, 1.0), free=free, pair_of=pair_of,
+                           active=np.ones(pw.size, dtype=np.bool_), at=None)
         return arrays, a
 
     def _reweight(self, x):
@@ -218,7 +221,7 @@ class SolverPD:
             at_ij, at_ji = np.full(i.size, -1, np.int64), np.full(i.size, -1, np.int64)
             at_ij[both] = self._factor.positions(i[both], j[both])
             at_ji[both] = self._factor.positions(j[both], i[both])
-            pr["at"] = (at_ij, at_ji, self._factor.positions(np.arange(n), np.arange(n)).astype(np.int64))
+            pr["at"] = (at_ij, at_ji, self._factor.positions(np.arange(n), np.arange(n)))
             pr["data"] = np.zeros(self._factor.nnz)
         # every step the set changes a little (bands at their ends): refactoring only past a 2 % change let the
         # suit settle in 191 frames against 105, slower in all
@@ -243,8 +246,6 @@ class SolverPD:
         self._factor = SPDFactor(a)
         self._w_c = np.where(self._inv_mass > 0, self._w_lo, 0.0)
         self._rho = self.settings.contact_rho * (self._mh2 + self._w_c)
-        self._pairs["active"] = np.ones(self._pairs["i"].size, dtype=np.bool_)
-        self._pairs["at"] = None
         self._dt = dt
 
     @property
@@ -335,7 +336,8 @@ class SolverPD:
                                self._plane, self._acc_g, self._acc_n, self._acc_w)
             pd_rhs(x, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
                    self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
-                   self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm)
+                   self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm,
+                   self._hinge_work)
             np.copyto(self._xh, self._b)
             sn_solve3(*factor, self._xh, self._work)
             omega = chebyshev(x, self._xh, self._xprev, k, int(st.chebyshev_delay), float(st.chebyshev_rho), omega)
