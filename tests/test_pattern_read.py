@@ -227,6 +227,12 @@ def _refused(tmp_path, spec, *words, raw=None):
 
 def test_refuses_unreadable_json(tmp_path):
     _refused(tmp_path, None, "JSON", raw="{\"pattern\": [")
+    _refused(tmp_path, None, "JSON", raw="[" * 100000)
+    (tmp_path / "latin1.json").write_bytes(b"{\"pattern\": \"\xff\"}")
+    with pytest.raises(InputError, match="latin1.json: not a readable JSON"):
+        garmentcode.read(tmp_path / "latin1.json")
+    with pytest.raises(InputError, match="nothing.json: not a readable JSON"):
+        garmentcode.read(tmp_path / "nothing.json")
     _refused(tmp_path, [1, 2], "top level")
     _refused(tmp_path, {"pattern": {"stitches": []}}, "panels")
 

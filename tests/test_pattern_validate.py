@@ -120,6 +120,11 @@ def test_implausible_units(tmp_path, units, words):
     refused(read(tmp_path, {"r": panel_spec(RECT)}, units=units), "r", None, "units", *words)
 
 
+def test_no_panels():
+    with pytest.raises(InputError, match="x.json: the pattern has no panels"):
+        validate.validate(model.Pattern(panels={}, stitches=[], source="x.json"))
+
+
 def test_small_panel_warned(tmp_path):
     small = [[0, 0], [1.5, 0], [1.5, 1], [0, 1]]  # a 1.5 cm tab beside a 40 cm panel
     warnings = validate.validate(read(tmp_path, {"r": panel_spec(RECT), "tab": panel_spec(small)}))

@@ -86,8 +86,9 @@ def read(path):
     where = _Where(path)
     try:
         spec = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise where.error(f"not a readable JSON file ({str(exc).splitlines()[0]})",
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise where.error(f"not a readable JSON file ({reason})",
                           "give a GarmentCode specification .json") from None
     if not isinstance(spec, dict):
         raise where.error("the top level is not an object", "give a GarmentCode specification .json")

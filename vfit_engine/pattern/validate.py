@@ -62,6 +62,8 @@ def validate(pattern):
         stitched edges too different in length, a panel of implausible size.
     """
     source = pattern.source or "<pattern>"
+    if not pattern.panels:
+        raise InputError(f"{source}: the pattern has no panels; fix: give at least one closed panel outline")
     warnings = []
     for panel in pattern.panels.values():
         _check_loop(panel, source)
