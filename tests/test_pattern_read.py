@@ -118,12 +118,14 @@ def test_bare_pattern_defaults_to_cm_and_no_frame(tmp_path):
 
 
 def test_frame_rule(tmp_path):
-    spec = one_edge_spec(None)
+    spec = one_edge_spec(None)  # placed at y = 1 m, with normalized_edge_loops: GarmentCode
     assert garmentcode.read(write(tmp_path, spec)).frame == "garmentcode"
-    del spec["properties"]["normalized_edge_loops"]
+    spec["parameters"] = {"len": {"influence": [], "type": "length", "value": 1}}  # GPG's parametric template
     assert garmentcode.read(write(tmp_path, spec)).frame == "gpg"
-    spec["properties"]["normalized_edge_loops"] = True
-    spec["parameters"] = {"len": {"influence": [], "type": "length", "value": 1}}
+    del spec["parameters"]
+    del spec["properties"]["normalized_edge_loops"]  # neither key: by height, 1 m up is the floor frame
+    assert garmentcode.read(write(tmp_path, spec)).frame == "garmentcode"
+    spec["pattern"]["panels"]["p"]["translation"] = [0, 30, 10]  # its top at 0.3 m: SMPL's pelvis frame
     assert garmentcode.read(write(tmp_path, spec)).frame == "gpg"
 
 

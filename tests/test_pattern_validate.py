@@ -152,6 +152,11 @@ def test_seam_too_different_in_length(tmp_path):
     refused(two_panels(tmp_path, 30), "a", 0, "10.00 cm", "more than a seam can ease")
 
 
+def test_gathers_let_through_as_warnings(tmp_path):
+    warnings = validate.validate(two_panels(tmp_path, 30), gathers=True)
+    assert len(warnings) == 1 and "10.00 cm" in warnings[0] and "gathered beyond easing" in warnings[0]
+
+
 def test_seam_lengths_two_to_one(tmp_path):
     # 4 cm onto 1.5 cm: only 2.5 cm, but the edges are not the pair the pattern meant
     b = [[0, 0], [1.5, 0], [1.5, 30], [0, 30]]
