@@ -101,6 +101,12 @@ def test_curved_edge_crossing_the_opposite_edge(tmp_path):
     assert validate.validate(pattern) == []
 
 
+def test_a_cubic_looping_over_itself(tmp_path):
+    # edge 0 from (0, 0) to (40, 0) with its controls crossed over, below the rectangle: the curve makes a loop
+    loop = {"type": "cubic", "params": [[1.5, -0.75], [-0.5, -0.75]]}  # relative: (60, -30) and (-20, -30)
+    refused(read(tmp_path, {"l": panel_spec(RECT, curvature={0: loop})}), "l", 0, "crosses or touches itself")
+
+
 def test_crossing_found_in_a_long_outline(tmp_path):
     # a 600-vertex circle whose last two vertices are swapped: the crossing is past the first block of rows
     t = np.linspace(0, 2 * np.pi, 600, endpoint=False)
