@@ -230,7 +230,10 @@ def _edge(spec, vertices, relative, units, where):
         raise where.error(f"endpoint index out of range ({ends}; the panel has {n} vertices)",
                           f"use indices 0 to {n - 1}")
     a, b = vertices[ends[0]], vertices[ends[1]]
-    kind, controls = _curvature(spec.get("curvature"), a, b, relative, where)
+    with np.errstate(over="ignore", invalid="ignore"):  # absurd magnitudes are refused just below, in one line
+        kind, controls = _curvature(spec.get("curvature"), a, b, relative, where)
+    if not all(np.isfinite(c).all() for c in controls):
+        raise where.error("a control point is not finite (the numbers are too large)", "give sensible coordinates")
     label = spec.get("label")
     return model.Edge(start=ends[0], end=ends[1], kind=kind,
                       controls=tuple(tuple(float(x) for x in c / units) for c in controls),

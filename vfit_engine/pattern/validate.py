@@ -70,13 +70,15 @@ def validate(pattern, *, gathers=False):
     if not pattern.panels:
         raise InputError(f"{source}: the pattern has no panels; fix: give at least one closed panel outline")
     warnings = []
-    for panel in pattern.panels.values():
-        _check_loop(panel, source)
-        warnings += _check_size(panel, source)
-        _check_crossing(panel, source)
-    _check_garment_size(pattern, source)
-    _check_stitch_refs(pattern, source)
-    warnings += _check_ease(pattern, source, gathers)
+    # overflow on absurd coordinates (1e308) is not worth a numpy warning: the checks refuse them in one line
+    with np.errstate(over="ignore", invalid="ignore"):
+        for panel in pattern.panels.values():
+            _check_loop(panel, source)
+            warnings += _check_size(panel, source)
+            _check_crossing(panel, source)
+        _check_garment_size(pattern, source)
+        _check_stitch_refs(pattern, source)
+        warnings += _check_ease(pattern, source, gathers)
     return warnings
 
 
