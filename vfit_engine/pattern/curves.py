@@ -111,3 +111,23 @@ def sample(kind, ends, controls, s):
     if kind in ("line", "circle", "polyline"):
         return curve_points(kind, ends, controls, s)   # all three are uniform in length already
     return _along(polyline(kind, ends, controls), s)
+
+
+def chords(kind, ends, controls, tol=1e-4):
+    """Points along the curve, ends included, whose chords stray at most ``tol`` (m) from it: (k, 2).
+
+    Lines and polylines give their own corners; other curves are halved until the sagitta (the curve's point
+    halfway along a piece against its chord's midpoint, the largest gap of a smooth arc) is within ``tol``.
+    """
+    if kind == "line":
+        return np.array([ends[0], ends[1]], float)
+    if kind == "polyline":
+        return _polyline_vertices(ends, controls)
+    n = 8
+    while True:
+        s = np.linspace(0.0, 1.0, n + 1)
+        pts = sample(kind, ends, controls, s)
+        mids = sample(kind, ends, controls, 0.5 * (s[:-1] + s[1:]))
+        if np.linalg.norm(mids - 0.5 * (pts[:-1] + pts[1:]), axis=1).max() <= tol or n >= 8192:
+            return pts
+        n *= 2

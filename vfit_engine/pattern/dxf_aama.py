@@ -23,7 +23,7 @@ from ezdxf import path as dxfpath
 from vfit_engine.errors import InputError
 from vfit_engine.io.atomic import atomic_write
 
-from . import model, seams
+from . import curves, model, seams
 
 BOUNDARY, TURN, NOTCH, GRAIN, INTERNAL, SEW = 1, 2, 4, 7, 8, 14
 #: Metres per unit of the style text ``Units:`` and of the header's $INSUNITS.
@@ -110,30 +110,10 @@ def _block_name(name, used):
     return candidate
 
 
-def edge_polyline(panel, i, chord=CHORD_M):
-    """Points along edge ``i`` from its start to its end, ends included, whose chords stray at most ``chord``
-    (m) from the curve: (k, 2) metres. Lines and polylines give their own points."""
-    e = panel.edges[i]
-    a, b = panel.edge_ends(i)
-    if e.kind == "line":
-        return np.array([a, b], float)
-    if e.kind == "polyline":
-        return np.vstack([a, np.asarray(e.controls, float).reshape(-1, 2), b])
-    n = 8
-    while True:
-        s = np.linspace(0.0, 1.0, n + 1)
-        pts = panel.edge_points(i, s)
-        mids = panel.edge_points(i, 0.5 * (s[:-1] + s[1:]))
-        # the curve's point halfway along each piece against its chord's midpoint: the sagitta, the largest
-        # distance between a smooth arc and its chord
-        if np.linalg.norm(mids - 0.5 * (pts[:-1] + pts[1:]), axis=1).max() <= chord or n >= 8192:
-            return pts
-        n *= 2
-
-
 def _boundary(panel):
     """The closed outline, edge after edge, each edge's end left to the next edge's start: (m, 2) metres."""
-    return np.concatenate([edge_polyline(panel, i)[:-1] for i in range(len(panel.edges))])
+    return np.concatenate([curves.chords(e.kind, panel.edge_ends(i), e.controls, CHORD_M)[:-1]
+                           for i, e in enumerate(panel.edges)])
 
 
 def _grain_line(grain, outline):
