@@ -194,7 +194,9 @@ def _open(path):
     try:
         return ezdxf.readfile(str(path))
     except OSError as exc:
-        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+        if exc.strerror:  # the file system's refusal (no such file, no permission)
+            raise InputError(f"cannot read {path}: {exc.strerror}") from None
+        raise InputError(f"{path}: not a readable DXF file ({exc}); export it again as ASCII DXF") from None
     except (ezdxf.DXFError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{path}: not a readable DXF file ({exc}); export it again as ASCII DXF") from None
 
