@@ -6,7 +6,6 @@ left to right, a new row when the row is full), in their own frame, y up, never 
 the file's pieces as they are. Drawn with Pillow only.
 """
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +46,18 @@ def layout(sizes, row_width):
     return corners, (width, y_top + row_h)
 
 
+def _best_layout(sizes, aspect=1.4):
+    """The shelf packing whose row width gives the smallest picture of ``aspect`` (width / height) holding it."""
+    widest, total = sizes[:, 0].max(), (sizes[:, 0] + GAP_M).sum()
+    best = None
+    for row in np.linspace(widest, max(total, widest), 32):
+        corners, (w, h) = layout(sizes, row)
+        score = max(w, aspect * h)
+        if best is None or score < best[0] - 1e-12:
+            best = (score, corners, (w, h))
+    return best[1], best[2]
+
+
 def draw_pattern(pattern, png_path, width_px=1600):
     """Draw the flat panels of ``pattern`` into a PNG.
 
@@ -73,8 +84,7 @@ def draw_pattern(pattern, png_path, width_px=1600):
     outlines = {n: _outline(pattern.panels[n]) for n in names}
     lo = {n: o.min(axis=0) for n, o in outlines.items()}
     sizes = np.array([np.ptp(outlines[n], axis=0) for n in names])
-    row = max(sizes[:, 0].max(), math.sqrt(float((sizes + GAP_M).prod(axis=1).sum())) * 1.5)
-    corners, (total_w, total_h) = layout(sizes, row)
+    corners, (total_w, total_h) = _best_layout(sizes)
     fs = max(11, round(width_px / 90))
     margin = 2 * fs
     px_m = (width_px - 2 * margin) / total_w
