@@ -281,3 +281,16 @@ def test_outline_projection_snaps_to_its_own_points():
     assert o.project([1.0002, 0.5]) == pytest.approx((1.5, 0.0002))
     assert o.project([1.0, 0.9997])[0] == 2.0  # within MERGE_M of the corner: the corner itself
     np.testing.assert_allclose(o.point_at(3.5), [0.0, 0.5])
+
+
+def test_edges_starting_elsewhere_than_vertex_0_round_trip_edge_for_edge(tmp_path):
+    """Turn point k is edge k's start, whatever the vertices' order: the read edges are the written ones."""
+    v = np.array([[0, 0], [0.4, 0], [0.4, 0.6], [0, 0.6]], float)
+    front = model.Panel("front", v, [model.Edge(2, 3), model.Edge(3, 0), model.Edge(0, 1), model.Edge(1, 2)])
+    p = model.Pattern({"front": front, "back": _rect("back", 0.4, 0.6)},
+                      [model.Stitch(model.EdgeRef("front", 3), model.EdgeRef("back", 3), True)])
+    dxf_aama.write(p, tmp_path / "p.dxf", tmp_path / "s.json")
+    q = dxf_aama.read(tmp_path / "p.dxf", tmp_path / "s.json")
+    _same_outline(front, q.panels["front"])
+    assert _stitches(q) == _stitches(p)
+    np.testing.assert_allclose(q.panels["front"].edge_ends(3), [[0.4, 0.0], [0.4, 0.6]], atol=1e-12)
