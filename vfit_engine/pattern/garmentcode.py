@@ -86,8 +86,9 @@ def read(path):
     where = _Where(path)
     try:
         spec = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise where.error(f"not a readable JSON file ({str(exc).splitlines()[0]})",
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise where.error(f"not a readable JSON file ({reason})",
                           "give a GarmentCode specification .json") from None
     if not isinstance(spec, dict):
         raise where.error("the top level is not an object", "give a GarmentCode specification .json")
@@ -138,7 +139,7 @@ def _panel_order(pattern, where):
     if not isinstance(order, list):
         raise where.error("'panel_order' is not a list", "give panel_order as a list of panel names")
     for name in order:
-        if name not in panels:
+        if not isinstance(name, str) or name not in panels:
             raise where.error(f"panel_order names panel {name!r}, which is not in 'panels'",
                               "remove it from panel_order or add the panel")
     listed = list(dict.fromkeys(order))
@@ -262,7 +263,8 @@ def _control(p, a, b, relative):
 
 def _arc_midpoint(params, a, b, where):
     """The midpoint of the arc ``[radius, large_arc, right]`` from ``a`` to ``b`` (pattern units)."""
-    if len(params) != 3 or not all(_finite_number(x) for x in params):
+    if len(params) != 3 or not _finite_number(params[0]) or not all(
+            isinstance(x, bool) or _finite_number(x) for x in params[1:]):
         raise where.error(f"circle params are {params!r}", "give [radius, large_arc (0/1), right (0/1)]")
     r, large, right = float(params[0]), bool(params[1]), bool(params[2])
     d = b - a
@@ -296,7 +298,7 @@ def _stitch(index, spec, panels, path):
 def _side(side, panels, path, index):
     name, edge = side.get("panel"), side.get("edge")
     where = _Where(path, stitch=index, panel=name, edge=edge)
-    if name not in panels:
+    if not isinstance(name, str) or name not in panels:
         raise where.error(f"names panel {name!r}, which is not in the pattern", "name one of " + ", ".join(panels))
     count = len(panels[name].edges)
     if isinstance(edge, bool) or not isinstance(edge, int) or not 0 <= edge < count:
