@@ -1,8 +1,9 @@
-"""The curve an edge of a panel follows: a line, a quadratic or cubic Bezier, or a circular arc.
+"""The curve an edge of a panel follows: a line, a quadratic or cubic Bezier, a circular arc, or a polyline.
 
 Every curve is given by absolute 2D points in the panel's frame (metres): its two ends and, for a Bezier, its
 control points; an arc is given by its ends and its midpoint (the point on the arc halfway along it), which fixes
-the circle and the side it bulges to without flags. Evaluation is by arc length, so that points spaced evenly
+the circle and the side it bulges to without flags; a polyline by the points it passes through between its ends,
+in order (a DXF outline is a polyline, so the edges read from one are). Evaluation is by arc length, so that points spaced evenly
 along one edge land evenly along the edge it is sewn to.
 """
 
@@ -10,7 +11,7 @@ import math
 
 import numpy as np
 
-KINDS = ("line", "quadratic", "cubic", "circle")
+KINDS = ("line", "quadratic", "cubic", "circle", "polyline")
 
 _DENSE = 512  # polyline samples per edge for arc-length lookups: far below a millimetre on any garment edge
 
@@ -52,9 +53,24 @@ def _arc_points(a, m, b, t):
     return np.column_stack([c[0] + r * np.cos(th), c[1] + r * np.sin(th)])
 
 
+def _polyline_vertices(ends, controls):
+    """The polyline's corners, ends included: (k + 2, 2)."""
+    inner = np.asarray(controls, float).reshape(-1, 2)
+    return np.vstack([np.asarray(ends[0], float), inner, np.asarray(ends[1], float)])
+
+
+def _along(pts, s):
+    """Points at arc-length fractions ``s`` of the polyline through ``pts`` (k, 2)."""
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    target = np.asarray(s, float) * cum[-1]
+    return np.column_stack([np.interp(target, cum, pts[:, 0]), np.interp(target, cum, pts[:, 1])])
+
+
 def curve_points(kind, ends, controls, t):
-    """Points at curve parameters ``t`` in [0, 1] (not arc length; see ``sample``)."""
+    """Points at curve parameters ``t`` in [0, 1] (not arc length, except for lines, arcs and polylines)."""
     a, b = np.asarray(ends[0], float), np.asarray(ends[1], float)
+    if kind == "polyline":
+        return _along(_polyline_vertices(ends, controls), t)
     if kind == "line":
         return a + np.asarray(t, float)[:, None] * (b - a)
     if kind in ("quadratic", "cubic"):
@@ -83,6 +99,8 @@ def length(kind, ends, controls):
         v0, v1 = p[0] - c, p[1] - c
         third = math.atan2(v0[0] * v1[1] - v0[1] * v1[0], v0 @ v1)
         return abs(3.0 * third) * r
+    if kind == "polyline":
+        return float(np.linalg.norm(np.diff(_polyline_vertices(ends, controls), axis=0), axis=1).sum())
     pts = polyline(kind, ends, controls)
     return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
 
@@ -90,9 +108,26 @@ def length(kind, ends, controls):
 def sample(kind, ends, controls, s):
     """Points at arc-length fractions ``s`` (m,) in [0, 1] of the curve: s = 0.5 is halfway along its length."""
     s = np.asarray(s, float)
-    if kind in ("line", "circle"):
-        return curve_points(kind, ends, controls, s)   # both are uniform in length already
-    pts = polyline(kind, ends, controls)
-    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    target = s * cum[-1]
-    return np.column_stack([np.interp(target, cum, pts[:, 0]), np.interp(target, cum, pts[:, 1])])
+    if kind in ("line", "circle", "polyline"):
+        return curve_points(kind, ends, controls, s)   # all three are uniform in length already
+    return _along(polyline(kind, ends, controls), s)
+
+
+def chords(kind, ends, controls, tol=1e-4):
+    """Points along the curve, ends included, whose chords stray at most ``tol`` (m) from it: (k, 2).
+
+    Lines and polylines give their own corners; other curves are halved until the sagitta (the curve's point
+    halfway along a piece against its chord's midpoint, the largest gap of a smooth arc) is within ``tol``.
+    """
+    if kind == "line":
+        return np.array([ends[0], ends[1]], float)
+    if kind == "polyline":
+        return _polyline_vertices(ends, controls)
+    n = 8
+    while True:
+        s = np.linspace(0.0, 1.0, n + 1)
+        pts = sample(kind, ends, controls, s)
+        mids = sample(kind, ends, controls, 0.5 * (s[:-1] + s[1:]))
+        if np.linalg.norm(mids - 0.5 * (pts[:-1] + pts[1:]), axis=1).max() <= tol or n >= 8192:
+            return pts
+        n *= 2

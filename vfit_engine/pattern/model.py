@@ -107,7 +107,8 @@ class Pattern:
 
     ``frame``: "garmentcode" (GarmentCode's body frame: Y up, floor at y = 0), "gpg" (Garment-Pattern-Generator's
     T-pose SMPL frame) or None (no placement in the file: DXF, or translation/rotation absent).
-    ``body`` is the body the pattern names (measurements in cm), when it names one.
+    ``body`` is the body the pattern names (measurements in cm), when it names one. ``warnings``: what a reader
+    assumed for the user to check (a missing grain line taken as vertical), one line each.
     """
 
     panels: dict
@@ -116,6 +117,7 @@ class Pattern:
     units_in_meter: float = 1.0
     frame: str | None = None
     body: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
     def edge_length(self, ref):
         return self.panels[ref.panel].edge_length(ref.edge)
