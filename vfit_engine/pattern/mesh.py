@@ -1,0 +1,484 @@
+"""Panels to cloth: every panel of a sewing pattern meshed into triangles, stitched edges matched vertex for vertex.
+
+Boundary. Each edge is sampled by arc length into ``n = ceil(L / spacing)`` segments; two stitched edges take the
+same ``n`` (the larger), and so do all the edges joined through chains of stitches, so that their vertices pair
+one for one; consecutive edges share their corner vertex.
+
+Interior. A triangular lattice of side ``spacing`` with one family of edges along the panel's warp (``Panel.grain``)
+and the other two at +-60 degrees to it. Not quads along warp and weft split into right triangles, because every
+triangle edge becomes a structural spring of the same family (:mod:`vfit_engine.sim.springs`) and a hinge
+(:mod:`vfit_engine.sim.bending`): a right-triangle grid adds the mesh's own anisotropy (its diagonals one way: up
+to 2.9x the bending stiffness across them, a stiffer shear one way than the other), while near-equilateral
+triangles bend and stretch alike in every direction (0.98-1.03 of the analytic bending energy in
+``tests/test_bending.py``). The yarn directions the cloth model does use come from the UVs: warp along V, weft
+along U (:func:`PatternMesh.yarn_uv`), not from the mesh's edges. A lattice with no four points on a circle also
+gives scipy's Delaunay a unique triangulation. Lattice points closer than ``CLEARANCE`` spacings to the outline
+are left out, so no interior point can lie in a boundary segment's diametral circle.
+
+Triangulation. scipy's Delaunay (Qhull, BSD-like licence) of the boundary samples and the lattice, then a check
+that every boundary segment is a Delaunay edge: one that is not (the outline comes closer to itself than a
+spacing, or an acute corner next to a short edge) refines every edge stitched to that edge's one and meshes
+again; a segment is never dropped. With every boundary segment an edge, no triangle crosses the outline, and
+those whose centroid is outside it are removed. Faces are oriented counter-clockwise in the panel frame (normal
++z), whichever way the outline winds.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import Delaunay, QhullError
+
+from vfit_engine.errors import InputError
+
+from .model import EdgeRef
+
+#: Target distance between neighbouring vertices, m (see the module docstring of the tests for the sizes).
+DEFAULT_SPACING = 0.015
+#: Lattice points closer to the outline than this many spacings are left out: above 0.5 no interior point can
+#: stand in the diametral circle of a boundary segment (at most a spacing long), and the band between the
+#: lattice and the outline stays under about 1.6 spacings wide.
+CLEARANCE = 0.6
+#: More vertices than this is a spacing too fine for a garment (a cloth of a million particles does not drape).
+MAX_VERTICES = 1_000_000
+#: Refinements of the stitched edges' counts before a missing boundary segment is an error.
+REFINE_ROUNDS = 8
+_CHUNK = 4096  # points per block in the point-against-outline tests (bounds their (points x segments) arrays)
+
+
+@dataclass(frozen=True, eq=False)
+class PatternMesh:
+    """A pattern meshed as cloth: every panel's triangles in its own flat frame.
+
+    Attributes
+    ----------
+    panel_names : tuple of str
+        The panels, in the pattern's order.
+    uv : (n, 2) float64, m
+        Every vertex in its panel's frame (the flat pattern).
+    vertex_panel : (n,) int64
+        Index into ``panel_names`` of each vertex's panel.
+    faces : (m, 3) int64
+        Triangles, counter-clockwise in their panel's frame; a panel's faces use only its own vertices.
+    edge_vertices : dict of EdgeRef -> (k + 1,) int64
+        The vertices along each panel edge, from its start to its end (corners shared by consecutive edges).
+    seam_pairs : (s, 2) int64
+        Vertex pairs to be sewn, stitch by stitch in the pattern's order, each stitch along its edge ``a``.
+    grain : (p, 2) float64
+        Unit warp direction of each panel in its frame.
+    source : str
+        The pattern's file, for messages.
+    """
+
+    panel_names: tuple
+    uv: np.ndarray
+    vertex_panel: np.ndarray
+    faces: np.ndarray
+    edge_vertices: dict
+    seam_pairs: np.ndarray
+    grain: np.ndarray
+    source: str = ""
+
+    @property
+    def vertex_count(self):
+        return int(self.uv.shape[0])
+
+    @property
+    def face_panel(self):
+        """(m,) int64: the panel of each face."""
+        return self.vertex_panel[self.faces[:, 0]]
+
+    def yarn_uv(self):
+        """(n, 2) float64, m: the flat pattern turned, panel by panel, so that its warp runs along +V and its
+        weft along +U (what :func:`vfit_engine.sim.bending.uv_is_pattern` reads); lengths and the faces'
+        orientation are kept."""
+        g = self.grain[self.vertex_panel]
+        return np.column_stack([self.uv[:, 0] * g[:, 1] - self.uv[:, 1] * g[:, 0],
+                                self.uv[:, 0] * g[:, 0] + self.uv[:, 1] * g[:, 1]])
+
+    def quality(self):
+        """(smallest angle in degrees, largest aspect ratio) over all triangles; the aspect is the longest edge
+        squared over the area, scaled so that an equilateral triangle has 1."""
+        angles, aspect = triangle_quality(self.uv, self.faces)
+        return float(angles.min()), float(aspect.max())
+
+    def welded(self):
+        """The sewn garment as one mesh: every seam pair merged into one vertex (a corner in several seams once).
+
+        Returns
+        -------
+        WeldedMesh
+
+        Raises
+        ------
+        InputError
+            When sewing would collapse a triangle (two of its corners sewn to one point) or lay two triangles on
+            the same three vertices: the seams are shorter there than the spacing can follow.
+        """
+        n = self.vertex_count
+        labels = _components(n, self.seam_pairs)
+        # number the welded vertices in the order of their first pattern vertex: stable, and the identity
+        # when nothing is sewn
+        first = np.full(labels.max() + 1, n, dtype=np.int64)
+        np.minimum.at(first, labels, np.arange(n))
+        rank = np.empty_like(first)
+        rank[np.argsort(first, kind="stable")] = np.arange(first.size)
+        index = rank[labels]
+        faces = index[self.faces]
+        self._refuse_collapsed(faces)
+        on_seam = np.zeros(first.size, dtype=bool)
+        on_seam[index[self.seam_pairs.ravel()]] = True
+        return WeldedMesh(int(first.size), faces, self.uv[self.faces], self.yarn_uv()[self.faces], index,
+                          on_seam, self.face_panel)
+
+    def _refuse_collapsed(self, faces):
+        """InputError naming the panel and the edges of the first face that sewing collapses or doubles."""
+        flat = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+        key = np.sort(faces, axis=1)
+        _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+        doubled = np.zeros(len(faces), dtype=bool)
+        doubled[first[counts > 1]] = True
+        bad = np.flatnonzero(flat | doubled)
+        if not bad.size:
+            return
+        f = int(bad[0])
+        on = sorted({f"{ref.panel!r} edge {ref.edge}" for ref, vs in self.edge_vertices.items()
+                     if np.isin(self.faces[f], vs).any()})
+        what = "collapses to a line" if flat[f] else "lands on another triangle's three vertices"
+        where = self.uv[self.faces[f]].mean(axis=0)
+        raise InputError(f"{self.source}: panel {self.panel_names[self.face_panel[f]]!r}: the triangle at "
+                         f"({where[0]:.3f}, {where[1]:.3f}) m {what} when its seams are sewn "
+                         f"({', '.join(on) or 'no edge'}; {bad.size} such triangles): the stitches there join "
+                         "points closer than the spacing; check those stitches or mesh with a smaller spacing")
+
+
+@dataclass(frozen=True, eq=False)
+class WeldedMesh:
+    """The sewn garment as one triangle mesh; its faces are the pattern's faces, one for one, in their order.
+
+    Attributes
+    ----------
+    vertex_count : int
+    faces : (m, 3) int64
+        Triangles on the welded vertices (``PatternMesh.faces`` through ``welded_index``).
+    corner_uv : (m, 3, 2) float64, m
+        Each face corner's place in its panel's frame (the flat pattern: a seam vertex has one per panel).
+    corner_yarn_uv : (m, 3, 2) float64, m
+        The same turned so that the warp runs along +V (:meth:`PatternMesh.yarn_uv`).
+    welded_index : (n,) int64
+        The welded vertex of every pattern vertex.
+    on_seam : (w,) bool
+        Welded vertices on a seam.
+    face_panel : (m,) int64
+        The panel of each face (index into ``PatternMesh.panel_names``).
+    """
+
+    vertex_count: int
+    faces: np.ndarray
+    corner_uv: np.ndarray
+    corner_yarn_uv: np.ndarray
+    welded_index: np.ndarray
+    on_seam: np.ndarray
+    face_panel: np.ndarray
+
+    def average(self, values):
+        """(w, ...) float64: per welded vertex, the mean of ``values`` (n, ...) over the pattern vertices welded
+        into it (the placed panels' 3D positions give the sewn garment's start this way)."""
+        values = np.asarray(values, dtype=np.float64)
+        total = np.zeros((self.vertex_count,) + values.shape[1:])
+        np.add.at(total, self.welded_index, values)
+        count = np.bincount(self.welded_index, minlength=self.vertex_count)
+        return total / count.reshape((-1,) + (1,) * (values.ndim - 1))
+
+    def edge_use(self):
+        """(unique edges (e, 2) int64 with the smaller index first, the number of faces using each (e,))."""
+        e = np.sort(np.concatenate([self.faces[:, [0, 1]], self.faces[:, [1, 2]], self.faces[:, [2, 0]]]), axis=1)
+        return np.unique(e, axis=0, return_counts=True)
+
+    def boundary_loops(self):
+        """The openings: closed loops of boundary edges (used by one face), each (L,) int64 in walking order
+        following the faces' orientation. Open chains (a non-manifold border) are returned as they end."""
+        f = self.faces
+        directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        edges, counts = self.edge_use()
+        once = {tuple(e) for e in edges[counts == 1].tolist()}
+        nxt = {}
+        for a, b in directed.tolist():
+            if (min(a, b), max(a, b)) in once:
+                nxt.setdefault(a, []).append(b)
+        loops, used = [], set()
+        for start in sorted(nxt):
+            for b in nxt[start]:
+                if (start, b) in used:
+                    continue
+                loop, a = [start], start
+                while (a, b) not in used:
+                    used.add((a, b))
+                    if b == start:
+                        break
+                    loop.append(b)
+                    a, b = b, next((c for c in nxt.get(b, ()) if (b, c) not in used), None)
+                    if b is None:
+                        break
+                loops.append(np.array(loop, dtype=np.int64))
+        return loops
+
+
+def triangle_quality(uv, faces):
+    """Per triangle: (smallest angle in degrees (m,), aspect ratio (m,)); the aspect is the longest edge squared
+    over the area times sqrt(3) / 4, 1 for an equilateral triangle and growing without bound for a sliver."""
+    p = np.asarray(uv, dtype=np.float64)[faces]
+    e = np.stack([p[:, 2] - p[:, 1], p[:, 0] - p[:, 2], p[:, 1] - p[:, 0]], axis=1)   # opposite corner k
+    ln = np.linalg.norm(e, axis=2)
+    cross = np.abs(e[:, 1, 0] * e[:, 2, 1] - e[:, 1, 1] * e[:, 2, 0])
+    area = 0.5 * cross
+    angles = []
+    for k in range(3):
+        u, v = -e[:, (k + 1) % 3], e[:, (k + 2) % 3]   # the two edges leaving corner k
+        angles.append(np.degrees(np.arctan2(np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]), np.sum(u * v, 1))))
+    longest = ln.max(axis=1)
+    aspect = np.divide(math.sqrt(3.0) / 4.0 * longest ** 2, area, out=np.full(area.shape, np.inf),
+                       where=area > 0)
+    return np.min(angles, axis=0), aspect
+
+
+def mesh_pattern(pattern, spacing=DEFAULT_SPACING):
+    """Mesh every panel of ``pattern`` as cloth (module docstring).
+
+    Parameters
+    ----------
+    pattern : vfit_engine.pattern.model.Pattern
+    spacing : float, m
+        Target edge length: the boundary's segments are at most this long, the lattice's sides this long.
+
+    Returns
+    -------
+    PatternMesh
+
+    Raises
+    ------
+    InputError
+        A spacing that is not a positive length or too fine for the pattern, a stitch naming no edge, an
+        outline that is not a closed loop of edges or that crosses itself.
+    """
+    spacing = float(spacing)
+    if not math.isfinite(spacing) or spacing <= 0:
+        raise InputError(f"{pattern.source}: the mesh spacing must be a positive length, not {spacing} m")
+    refs, comp, counts = _edge_counts(pattern, spacing)
+    where = {r: k for k, r in enumerate(refs)}
+    for _ in range(REFINE_ROUNDS + 1):
+        panels, missing = [], None
+        for name, panel in pattern.panels.items():
+            per_edge = [int(counts[comp[where[EdgeRef(name, i)]]]) for i in range(len(panel.edges))]
+            result = _mesh_panel(pattern.source, name, panel, per_edge, spacing)
+            if isinstance(result, int):                    # the edge of a missing boundary segment
+                missing = missing or []
+                missing.append(where[EdgeRef(name, result)])
+                continue
+            panels.append(result)
+        if missing is None:
+            break
+        for k in set(comp[missing].tolist()):
+            counts[k] = max(counts[k] + 1, math.ceil(1.5 * counts[k]))
+    else:
+        ref = refs[missing[0]]
+        raise InputError(f"{pattern.source}: panel {ref.panel!r}, edge {ref.edge}: its outline comes too close to "
+                         f"itself for a mesh at a spacing of {spacing * 1000:.1f} mm even after {REFINE_ROUNDS} "
+                         "refinements of the edge; check the outline there or mesh with a smaller spacing")
+    return _assemble(pattern, panels)
+
+
+# ---------------------------------------------------------------------- boundary counts and stitches
+def _components(count, pairs):
+    """(count,) int64: the connected component of each of ``count`` items joined by ``pairs`` (k, 2)."""
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(count, count))
+    return connected_components(graph, directed=False)[1].astype(np.int64)
+
+
+def _check_ref(pattern, ref, k):
+    panel = pattern.panels.get(ref.panel)
+    if panel is None:
+        raise InputError(f"{pattern.source}: stitch {k} names panel {ref.panel!r}, which the pattern does not have")
+    if not 0 <= ref.edge < len(panel.edges):
+        raise InputError(f"{pattern.source}: stitch {k} names edge {ref.edge} of panel {ref.panel!r}, which has "
+                         f"edges 0 to {len(panel.edges) - 1}")
+
+
+def _edge_counts(pattern, spacing):
+    """Every edge, its stitch component and the segment count of each component (the largest of its edges').
+
+    Returns (refs: list of EdgeRef, comp: (e,) int64 component of each ref, counts: (c,) int64 per component).
+    """
+    refs = [EdgeRef(name, i) for name, p in pattern.panels.items() for i in range(len(p.edges))]
+    where = {r: k for k, r in enumerate(refs)}
+    lengths = np.array([pattern.edge_length(r) for r in refs], dtype=np.float64)
+    for r, length in zip(refs, lengths):
+        if not length > spacing * 1e-6:
+            raise InputError(f"{pattern.source}: panel {r.panel!r}, edge {r.edge} has no length ({length} m); "
+                             "remove it or move its ends apart")
+    area = sum(abs(_signed_area(p.outline())) for p in pattern.panels.values())
+    estimate = 1.2 * area / spacing ** 2 + lengths.sum() / spacing
+    if estimate > MAX_VERTICES:
+        raise InputError(f"{pattern.source}: a spacing of {spacing * 1000:g} mm would give about "
+                         f"{estimate:,.0f} vertices (more than {MAX_VERTICES:,}); use a larger spacing")
+    for k, s in enumerate(pattern.stitches):
+        _check_ref(pattern, s.a, k)
+        _check_ref(pattern, s.b, k)
+    comp = _components(len(refs), [(where[s.a], where[s.b]) for s in pattern.stitches])
+    own = np.maximum(1, np.ceil(lengths / spacing - 1e-9)).astype(np.int64)
+    counts = np.zeros(comp.max() + 1 if len(comp) else 0, dtype=np.int64)
+    np.maximum.at(counts, comp, own)
+    return refs, comp, counts
+
+
+def _seam_pairs(pattern, edge_vertices):
+    """(s, 2) int64: the vertex pairs of every stitch, its direction resolved (``Stitch.opposed`` when given;
+    else the pairing whose ends are closer in the pattern's 3D placement; else, with no placement, opposed when
+    the two outlines wind the same way, as two panels cut face up and sewn edge to edge are)."""
+    placed = any(np.any(np.asarray(p.translation) != 0) for p in pattern.panels.values())
+    winding = {name: np.sign(_signed_area(p.outline())) for name, p in pattern.panels.items()}
+    pairs = []
+    for s in pattern.stitches:
+        va, vb = edge_vertices[s.a], edge_vertices[s.b]
+        opposed = s.opposed
+        if opposed is None and placed:
+            pa, pb = pattern.panels[s.a.panel], pattern.panels[s.b.panel]
+            a0, a1 = pa.to_3d(np.stack(pa.edge_ends(s.a.edge)))
+            b0, b1 = pb.to_3d(np.stack(pb.edge_ends(s.b.edge)))
+            same = np.linalg.norm(a0 - b0) + np.linalg.norm(a1 - b1)
+            opposed = bool(np.linalg.norm(a0 - b1) + np.linalg.norm(a1 - b0) <= same)
+        elif opposed is None:
+            opposed = bool(winding[s.a.panel] == winding[s.b.panel])
+        pairs.append(np.stack([va, vb[::-1] if opposed else vb], axis=1))
+    return np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=np.int64)
+
+
+# ---------------------------------------------------------------------- one panel
+def _signed_area(poly):
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def _boundary(source, name, panel, per_edge):
+    """The outline sampled by arc length: points (b, 2) in loop order and each edge's indices into them."""
+    k = len(panel.edges)
+    if k < 2:
+        raise InputError(f"{source}: panel {name!r} has {k} edge(s); an outline needs a closed loop of edges")
+    pts, index, at = [], [], 0
+    for i, e in enumerate(panel.edges):
+        nxt = panel.edges[(i + 1) % k]
+        if e.end != nxt.start:
+            raise InputError(f"{source}: panel {name!r}, edge {i} ends at vertex {e.end} but edge {(i + 1) % k} "
+                             f"starts at vertex {nxt.start}: the edges must follow each other round the outline")
+        n = per_edge[i]
+        pts.append(panel.edge_points(i, np.arange(n) / n))
+        index.append(at + np.arange(n + 1))
+        at += n
+    return np.concatenate(pts), [ix % at for ix in index]
+
+
+def _crossings(points, poly):
+    """(p,) bool: inside the closed polygon ``poly`` (even-odd rule), in blocks of points."""
+    a, b = poly, np.roll(poly, -1, axis=0)
+    dy = b[:, 1] - a[:, 1]
+    slope = np.divide(b[:, 0] - a[:, 0], dy, out=np.zeros_like(dy), where=dy != 0)
+    out = np.zeros(len(points), dtype=bool)
+    for lo in range(0, len(points), _CHUNK):
+        p = points[lo:lo + _CHUNK]
+        px, py = p[:, :1], p[:, 1:]
+        spans = (a[:, 1] > py) != (b[:, 1] > py)
+        x_at = a[:, 0] + (py - a[:, 1]) * slope
+        out[lo:lo + _CHUNK] = np.sum(spans & (px < x_at), axis=1) % 2 == 1
+    return out
+
+
+def _clearance(points, poly):
+    """(p,) float64: the distance of each point to the closed polyline ``poly``."""
+    a, b = poly, np.roll(poly, -1, axis=0)
+    d = b - a
+    dd = np.maximum(np.sum(d * d, axis=1), 1e-300)
+    out = np.empty(len(points))
+    for lo in range(0, len(points), _CHUNK):
+        p = points[lo:lo + _CHUNK, None, :]
+        t = np.clip(np.sum((p - a) * d, axis=2) / dd, 0.0, 1.0)
+        out[lo:lo + _CHUNK] = np.sqrt(np.min(np.sum((a + t[..., None] * d - p) ** 2, axis=2), axis=1))
+    return out
+
+
+def _lattice(poly, grain, spacing):
+    """Points of the triangular lattice along ``grain`` inside ``poly``, at least CLEARANCE spacings from it."""
+    g = np.asarray(grain, dtype=np.float64)
+    w = np.array([-g[1], g[0]])
+    centre = poly.mean(axis=0)
+    s, t = (poly - centre) @ g, (poly - centre) @ w
+    row = spacing * math.sqrt(3.0) / 2.0
+    j = np.arange(math.floor(t.min() / row), math.ceil(t.max() / row) + 1)
+    i = np.arange(math.floor(s.min() / spacing) - 1, math.ceil(s.max() / spacing) + 2)
+    jj, ii = np.meshgrid(j, i, indexing="ij")
+    along = (ii + 0.5 * (jj % 2)) * spacing        # rows of warp-parallel edges, every other row shifted half
+    pts = centre + along.reshape(-1, 1) * g + (jj * row).reshape(-1, 1) * w
+    pts = pts[_crossings(pts, poly)]
+    return pts[_clearance(pts, poly) >= CLEARANCE * spacing]
+
+
+def _mesh_panel(source, name, panel, per_edge, spacing):
+    """(uv (v, 2), faces (f, 3) local, edge indices) of one panel, or the index of an edge whose boundary
+    segment the Delaunay triangulation missed (the caller refines it)."""
+    bnd, edge_index = _boundary(source, name, panel, per_edge)
+    if not np.all(np.isfinite(bnd)):
+        raise InputError(f"{source}: panel {name!r}: its outline has coordinates that are not numbers")
+    grain = np.asarray(panel.grain, dtype=np.float64)
+    norm = float(np.linalg.norm(grain))
+    if not (math.isfinite(norm) and norm > 0):
+        raise InputError(f"{source}: panel {name!r}: its grain line has no direction ({panel.grain})")
+    pts = np.concatenate([bnd, _lattice(bnd, grain / norm, spacing)])
+    b = len(bnd)
+    try:
+        tri = Delaunay(pts)
+    except QhullError as exc:
+        raise InputError(f"{source}: panel {name!r}: its outline encloses no area ({str(exc).splitlines()[0]})") \
+            from None
+    if len(tri.coplanar):
+        v = int(tri.coplanar[0, 0])
+        raise InputError(f"{source}: panel {name!r}: its outline passes twice through ({pts[v, 0]:.4f}, "
+                         f"{pts[v, 1]:.4f}) m; an outline must not touch itself")
+    faces = tri.simplices.astype(np.int64)
+    seg = np.stack([np.arange(b), (np.arange(b) + 1) % b], axis=1)
+    have = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    n = len(pts)
+    found = np.isin(np.sort(seg, axis=1) @ [n, 1], have @ [n, 1])
+    if not found.all():
+        gone = int(np.flatnonzero(~found)[0])
+        return next(i for i, ix in enumerate(edge_index) if gone in ix[:-1])
+    faces = faces[_crossings(pts[faces].mean(axis=1), bnd)]
+    p = pts[faces]
+    signed = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                    - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    faces[signed < 0] = faces[signed < 0][:, [0, 2, 1]]
+    outline = abs(_signed_area(bnd))
+    if abs(np.abs(signed).sum() - outline) > 1e-9 * outline:
+        raise InputError(f"{source}: panel {name!r}: its outline crosses itself (the triangles inside it cover "
+                         f"{np.abs(signed).sum():.4f} m^2, the outline's area is {outline:.4f} m^2); "
+                         "fix the crossing edges")
+    return pts, faces, edge_index
+
+
+def _assemble(pattern, panels):
+    """One PatternMesh from the panels' meshes, their vertices numbered panel after panel."""
+    uv, vp, faces, edge_vertices, grain, at = [], [], [], {}, [], 0
+    for k, ((name, panel), (pts, f, edge_index)) in enumerate(zip(pattern.panels.items(), panels)):
+        uv.append(pts)
+        vp.append(np.full(len(pts), k, dtype=np.int64))
+        faces.append(f + at)
+        for i, ix in enumerate(edge_index):
+            edge_vertices[EdgeRef(name, i)] = ix + at
+        g = np.asarray(panel.grain, dtype=np.float64)
+        grain.append(g / np.linalg.norm(g))
+        at += len(pts)
+    seam_pairs = _seam_pairs(pattern, edge_vertices)
+    return PatternMesh(tuple(pattern.panels), np.concatenate(uv), np.concatenate(vp), np.concatenate(faces),
+                       edge_vertices, seam_pairs, np.array(grain).reshape(-1, 2), str(pattern.source))
