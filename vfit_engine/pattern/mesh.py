@@ -69,6 +69,9 @@ class PatternMesh:
         Vertex pairs to be sewn, stitch by stitch in the pattern's order, each stitch along its edge ``a``.
     grain : (p, 2) float64
         Unit warp direction of each panel in its frame.
+    xyz : (n, 3) float64 or None, m
+        Every vertex where its panel's ``translation`` and ``rotation`` put it in the pattern's 3D frame
+        (``Panel.to_3d``); None when the pattern has no placement.
     source : str
         The pattern's file, for messages.
     """
@@ -80,6 +83,7 @@ class PatternMesh:
     edge_vertices: dict
     seam_pairs: np.ndarray
     grain: np.ndarray
+    xyz: np.ndarray | None = None
     source: str = ""
 
     @property
@@ -117,30 +121,32 @@ class PatternMesh:
         InputError
             When sewing would collapse a triangle (two of its corners sewn to one point) or lay two triangles on
             the same three vertices: the seams are shorter there than the spacing can follow.
+
+        Notes
+        -----
+        The faces are oriented consistently across the seams, panel by panel (a panel's faces are all reversed
+        or none), and outwards when the pattern is placed in 3D (their normals point away from the garment's
+        middle on the whole); a pattern without placement keeps its first panel's orientation (+z of its frame,
+        the face of a piece cut face up).
         """
-        n = self.vertex_count
-        labels = _components(n, self.seam_pairs)
-        # number the welded vertices in the order of their first pattern vertex: stable, and the identity
-        # when nothing is sewn
-        first = np.full(labels.max() + 1, n, dtype=np.int64)
-        np.minimum.at(first, labels, np.arange(n))
-        rank = np.empty_like(first)
-        rank[np.argsort(first, kind="stable")] = np.arange(first.size)
-        index = rank[labels]
+        index = _weld_index(self.vertex_count, self.seam_pairs)
         faces = index[self.faces]
         self._refuse_collapsed(faces)
-        on_seam = np.zeros(first.size, dtype=bool)
+        count = int(index.max()) + 1 if index.size else 0
+        flip, consistent = _panel_flips(faces, self.face_panel, len(self.panel_names))
+        if self.xyz is not None and _outward(self.xyz, self.faces, flip[self.face_panel]) < 0:
+            flip = ~flip
+        reverse = flip[self.face_panel]
+        order = np.where(reverse[:, None], [0, 2, 1], [0, 1, 2])
+        corners = np.take_along_axis(self.faces, order, axis=1)
+        on_seam = np.zeros(count, dtype=bool)
         on_seam[index[self.seam_pairs.ravel()]] = True
-        return WeldedMesh(int(first.size), faces, self.uv[self.faces], self.yarn_uv()[self.faces], index,
-                          on_seam, self.face_panel)
+        return WeldedMesh(count, index[corners], self.uv[corners], self.yarn_uv()[corners], index, on_seam,
+                          self.face_panel, flip, consistent)
 
     def _refuse_collapsed(self, faces):
         """InputError naming the panel and the edges of the first face that sewing collapses or doubles."""
-        flat = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
-        key = np.sort(faces, axis=1)
-        _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
-        doubled = np.zeros(len(faces), dtype=bool)
-        doubled[first[counts > 1]] = True
+        flat, doubled = _sewing_faults(faces)
         bad = np.flatnonzero(flat | doubled)
         if not bad.size:
             return
@@ -157,13 +163,14 @@ class PatternMesh:
 
 @dataclass(frozen=True, eq=False)
 class WeldedMesh:
-    """The sewn garment as one triangle mesh; its faces are the pattern's faces, one for one, in their order.
+    """The sewn garment as one triangle mesh; its faces are the pattern's faces, one for one, in their order
+    (the corners of a ``flipped`` panel's faces in reverse order).
 
     Attributes
     ----------
     vertex_count : int
     faces : (m, 3) int64
-        Triangles on the welded vertices (``PatternMesh.faces`` through ``welded_index``).
+        Triangles on the welded vertices (``PatternMesh.faces`` through ``welded_index``), oriented one way.
     corner_uv : (m, 3, 2) float64, m
         Each face corner's place in its panel's frame (the flat pattern: a seam vertex has one per panel).
     corner_yarn_uv : (m, 3, 2) float64, m
@@ -174,6 +181,12 @@ class WeldedMesh:
         Welded vertices on a seam.
     face_panel : (m,) int64
         The panel of each face (index into ``PatternMesh.panel_names``).
+    flipped : (p,) bool
+        Panels whose faces are reversed from ``PatternMesh.faces`` (clockwise in their frame) so that the sewn
+        surface is oriented one way (:meth:`PatternMesh.welded`).
+    consistent : bool
+        Whether one orientation fits every seam (False for a surface with a twist, a seam sewn right side to
+        wrong side round a loop).
     """
 
     vertex_count: int
@@ -183,6 +196,8 @@ class WeldedMesh:
     welded_index: np.ndarray
     on_seam: np.ndarray
     face_panel: np.ndarray
+    flipped: np.ndarray
+    consistent: bool = True
 
     def average(self, values):
         """(w, ...) float64: per welded vertex, the mean of ``values`` (n, ...) over the pattern vertices welded
@@ -291,7 +306,73 @@ def mesh_pattern(pattern, spacing=DEFAULT_SPACING):
     return _assemble(pattern, panels)
 
 
-# ---------------------------------------------------------------------- boundary counts and stitches
+# ---------------------------------------------------------------------- boundary counts, stitches, welding
+def _weld_index(count, pairs):
+    """(count,) int64: the welded vertex of each of ``count`` vertices sewn by ``pairs``, numbered in the order of
+    their first vertex (stable, and the identity when nothing is sewn)."""
+    labels = _components(count, pairs)
+    first = np.full(labels.max() + 1 if count else 0, count, dtype=np.int64)
+    np.minimum.at(first, labels, np.arange(count))
+    rank = np.empty_like(first)
+    rank[np.argsort(first, kind="stable")] = np.arange(first.size)
+    return rank[labels]
+
+
+def _sewing_faults(faces):
+    """(collapsed (m,) bool, doubled (m,) bool) of triangles on welded vertices: two corners on one vertex, or
+    the same three vertices as an earlier triangle."""
+    flat = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+    _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
+    doubled = np.ones(len(faces), dtype=bool)
+    doubled[first] = False
+    return flat, doubled
+
+
+def _panel_flips(faces, face_panel, panel_count):
+    """Which panels to reverse so that every edge two faces share runs opposite ways in them.
+
+    Returns (flip (p,) bool, consistent bool); a breadth-first walk over the panels joined by shared edges,
+    each panel's faces being consistent already (all counter-clockwise in its frame).
+    """
+    a = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])
+    b = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
+    panel = np.tile(face_panel, 3)
+    n = int(faces.max()) + 1 if faces.size else 0
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    key, forward, panel = key[order], (a < b)[order], panel[order]
+    two = np.flatnonzero((key[1:] == key[:-1]) & np.r_[True, key[1:-1] != key[:-2]] & np.r_[key[2:] != key[1:-1], True])
+    links = {}
+    for i in two.tolist():
+        p, q, same = int(panel[i]), int(panel[i + 1]), bool(forward[i] == forward[i + 1])
+        links.setdefault(p, []).append((q, same))
+        links.setdefault(q, []).append((p, same))
+    flip, seen, consistent = np.zeros(panel_count, dtype=bool), np.zeros(panel_count, dtype=bool), True
+    for root in range(panel_count):
+        if seen[root]:
+            continue
+        seen[root], stack = True, [root]
+        while stack:
+            p = stack.pop()
+            for q, same in links.get(p, ()):
+                want = flip[p] ^ same
+                if not seen[q]:
+                    seen[q], flip[q] = True, want
+                    stack.append(q)
+                elif flip[q] != want:
+                    consistent = False
+    return flip, consistent
+
+
+def _outward(xyz, faces, reverse):
+    """Sum over the faces, reversed where ``reverse``, of their area normals dotted with their centroid's offset
+    from the garment's middle: positive when they face outwards on the whole."""
+    f = np.where(reverse[:, None], faces[:, [0, 2, 1]], faces)
+    p = xyz[f]
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return float(np.sum(normal * (p.mean(axis=1) - xyz.mean(axis=0))))
+
+
 def _components(count, pairs):
     """(count,) int64: the connected component of each of ``count`` items joined by ``pairs`` (k, 2)."""
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
@@ -335,25 +416,38 @@ def _edge_counts(pattern, spacing):
     return refs, comp, counts
 
 
+#: Frames whose files sew every stitch opposed unless it is flagged ``right_wrong``: GarmentCode's and GPG's
+#: panels face outwards by their outline's winding (pygarment's ``boxmeshgen``: ``swap = not right_wrong``).
+WINDING_FRAMES = ("garmentcode", "gpg")
+
+
+def _stitch_opposed(pattern, stitch, placed, winding):
+    """Whether edge ``b`` of the stitch runs against edge ``a``: ``Stitch.opposed`` when given; else the file's
+    convention for GarmentCode and GPG (``WINDING_FRAMES``); else, for panels placed in 3D, the pairing whose
+    ends are closer; else (no placement: pieces cut face up) opposed when the two outlines wind the same way."""
+    if stitch.opposed is not None:
+        return bool(stitch.opposed)
+    if pattern.frame in WINDING_FRAMES:
+        return not stitch.right_wrong
+    if placed:
+        pa, pb = pattern.panels[stitch.a.panel], pattern.panels[stitch.b.panel]
+        a0, a1 = pa.to_3d(np.stack(pa.edge_ends(stitch.a.edge)))
+        b0, b1 = pb.to_3d(np.stack(pb.edge_ends(stitch.b.edge)))
+        # squared distances: their difference is -2 (a1 - a0).(b1 - b0), the edges' directions, which still
+        # decides for a short edge on two panels far apart
+        return bool(np.sum((a0 - b1) ** 2) + np.sum((a1 - b0) ** 2) <= np.sum((a0 - b0) ** 2) + np.sum((a1 - b1) ** 2))
+    return bool(winding[stitch.a.panel] == winding[stitch.b.panel])
+
+
 def _seam_pairs(pattern, edge_vertices):
-    """(s, 2) int64: the vertex pairs of every stitch, its direction resolved (``Stitch.opposed`` when given;
-    else the pairing whose ends are closer in the pattern's 3D placement; else, with no placement, opposed when
-    the two outlines wind the same way, as two panels cut face up and sewn edge to edge are)."""
+    """(s, 2) int64: the vertex pairs of every stitch along its edge ``a``, its direction resolved
+    (:func:`_stitch_opposed`)."""
     placed = any(np.any(np.asarray(p.translation) != 0) for p in pattern.panels.values())
     winding = {name: np.sign(_signed_area(p.outline())) for name, p in pattern.panels.items()}
     pairs = []
     for s in pattern.stitches:
         va, vb = edge_vertices[s.a], edge_vertices[s.b]
-        opposed = s.opposed
-        if opposed is None and placed:
-            pa, pb = pattern.panels[s.a.panel], pattern.panels[s.b.panel]
-            a0, a1 = pa.to_3d(np.stack(pa.edge_ends(s.a.edge)))
-            b0, b1 = pb.to_3d(np.stack(pb.edge_ends(s.b.edge)))
-            same = np.linalg.norm(a0 - b0) + np.linalg.norm(a1 - b1)
-            opposed = bool(np.linalg.norm(a0 - b1) + np.linalg.norm(a1 - b0) <= same)
-        elif opposed is None:
-            opposed = bool(winding[s.a.panel] == winding[s.b.panel])
-        pairs.append(np.stack([va, vb[::-1] if opposed else vb], axis=1))
+        pairs.append(np.stack([va, vb[::-1] if _stitch_opposed(pattern, s, placed, winding) else vb], axis=1))
     return np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=np.int64)
 
 
@@ -436,9 +530,13 @@ def _mesh_panel(source, name, panel, per_edge, spacing):
     if not (math.isfinite(norm) and norm > 0):
         raise InputError(f"{source}: panel {name!r}: its grain line has no direction ({panel.grain})")
     pts = np.concatenate([bnd, _lattice(bnd, grain / norm, spacing)])
-    b = len(bnd)
+    b, n = len(bnd), len(pts)
+    # four far corners round the panel, so that no point of it lies on the convex hull: collinear points on a
+    # hull (a straight edge's samples) give Qhull flat triangles and T-junctions
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    far = np.array([[0, 0], [1, 0], [1, 1], [0, 1]]) * 3.0 * (hi - lo).max() + lo - (hi - lo).max()
     try:
-        tri = Delaunay(pts)
+        tri = Delaunay(np.concatenate([pts, far]))
     except QhullError as exc:
         raise InputError(f"{source}: panel {name!r}: its outline encloses no area ({str(exc).splitlines()[0]})") \
             from None
@@ -447,9 +545,9 @@ def _mesh_panel(source, name, panel, per_edge, spacing):
         raise InputError(f"{source}: panel {name!r}: its outline passes twice through ({pts[v, 0]:.4f}, "
                          f"{pts[v, 1]:.4f}) m; an outline must not touch itself")
     faces = tri.simplices.astype(np.int64)
+    faces = faces[np.all(faces < n, axis=1)]
     seg = np.stack([np.arange(b), (np.arange(b) + 1) % b], axis=1)
     have = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    n = len(pts)
     found = np.isin(np.sort(seg, axis=1) @ [n, 1], have @ [n, 1])
     if not found.all():
         gone = int(np.flatnonzero(~found)[0])
@@ -459,12 +557,58 @@ def _mesh_panel(source, name, panel, per_edge, spacing):
     signed = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
                     - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
     faces[signed < 0] = faces[signed < 0][:, [0, 2, 1]]
+    signed = np.abs(signed)
     outline = abs(_signed_area(bnd))
-    if abs(np.abs(signed).sum() - outline) > 1e-9 * outline:
+    if abs(signed.sum() - outline) > 1e-9 * outline or not signed.min() > 1e-9 * spacing ** 2:
         raise InputError(f"{source}: panel {name!r}: its outline crosses itself (the triangles inside it cover "
-                         f"{np.abs(signed).sum():.4f} m^2, the outline's area is {outline:.4f} m^2); "
+                         f"{signed.sum():.4f} m^2, the outline's area is {outline:.4f} m^2); "
                          "fix the crossing edges")
     return pts, faces, edge_index
+
+
+def _split_for_sewing(uv, vertex_panel, faces, seam_pairs, rounds=4):
+    """Split the interior edges of the triangles that sewing would collapse or double, at their midpoints.
+
+    A triangle on three consecutive vertices of a seam (an ear at a corner of the outline, common where an edge
+    a few millimetres long meets the next) lands on the same three welded vertices as the ear across the seam;
+    a triangle joining two vertices sewn to each other collapses. Splitting the triangle's interior edge puts
+    an unsewn vertex into it. Returns (uv, vertex_panel, faces) with the new vertices appended.
+    """
+    uv, vp, faces = uv.copy(), vertex_panel.copy(), faces.copy()
+    for _ in range(rounds):
+        index = _weld_index(len(uv), seam_pairs)
+        welded = index[faces]
+        flat, doubled = _sewing_faults(welded)
+        bad = np.flatnonzero(flat | doubled)
+        if not bad.size:
+            break
+        e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+        keys, uses = np.unique(e, axis=0, return_counts=True)
+        interior = {tuple(k) for k in keys[uses == 2].tolist()}
+        split = set()
+        for f in bad.tolist():
+            sides = [tuple(sorted((faces[f, k], faces[f, (k + 1) % 3]))) for k in range(3)]
+            sides = [sd for sd in sides if sd in interior]
+            if flat[f]:
+                sides = [sd for sd in sides if index[sd[0]] == index[sd[1]]] or sides
+            if sides:
+                split.add(max(sides, key=lambda sd: np.linalg.norm(uv[sd[0]] - uv[sd[1]])))
+        if not split:
+            break
+        for a, b in sorted(split):
+            m = len(uv)
+            uv = np.vstack([uv, 0.5 * (uv[a] + uv[b])])
+            vp = np.append(vp, vp[a])
+            keep, new = [], []
+            for tri in faces.tolist():
+                k = next((k for k in range(3) if {tri[k], tri[(k + 1) % 3]} == {a, b}), None)
+                if k is None:
+                    keep.append(tri)
+                    continue
+                p, q, r = tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]
+                new += [[p, m, r], [m, q, r]]
+            faces = np.array(keep + new, dtype=np.int64)
+    return uv, vp, faces
 
 
 def _assemble(pattern, panels):
@@ -480,5 +624,19 @@ def _assemble(pattern, panels):
         grain.append(g / np.linalg.norm(g))
         at += len(pts)
     seam_pairs = _seam_pairs(pattern, edge_vertices)
-    return PatternMesh(tuple(pattern.panels), np.concatenate(uv), np.concatenate(vp), np.concatenate(faces),
-                       edge_vertices, seam_pairs, np.array(grain).reshape(-1, 2), str(pattern.source))
+    uv, vp, faces = _split_for_sewing(np.concatenate(uv), np.concatenate(vp), np.concatenate(faces), seam_pairs)
+    # the split edges' midpoints back among their panels' vertices, so that a panel's vertices stay consecutive
+    order = np.argsort(vp, kind="stable")
+    new = np.empty_like(order)
+    new[order] = np.arange(len(order))
+    faces = new[faces]
+    faces = faces[np.lexsort((np.arange(len(faces)), vp[order][faces[:, 0]]))]
+    edge_vertices = {ref: new[ix] for ref, ix in edge_vertices.items()}
+    uv, vp = uv[order], vp[order]
+    xyz = None
+    if any(np.any(np.asarray(p.translation) != 0) for p in pattern.panels.values()):
+        xyz = np.zeros((len(uv), 3))
+        for k, panel in enumerate(pattern.panels.values()):
+            xyz[vp == k] = panel.to_3d(uv[vp == k])
+    return PatternMesh(tuple(pattern.panels), uv, vp, faces, edge_vertices, new[seam_pairs],
+                       np.array(grain).reshape(-1, 2), xyz, str(pattern.source))
