@@ -28,16 +28,18 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay, QhullError
 
 from vfit_engine.errors import InputError
 
+from . import weld
 from .model import EdgeRef
 
-#: Target distance between neighbouring vertices, m (see the module docstring of the tests for the sizes).
-DEFAULT_SPACING = 0.015
+#: Target distance between neighbouring vertices, m. The MakeHuman suits vfit drapes have 2.0-4.0 k vertices on
+#: 0.9-1.8 m^2 of cloth, median edges of 21-35 mm (male_casualsuit06: 4035 vertices, 20.8 mm); at 20 mm the
+#: shared patterns weld to 1.7 k (GPG tee, 0.58 m^2), 1.8 k (GarmentCode shirt, 0.64 m^2), 2.2 k (GPG skirt,
+#: 0.75 m^2) and 3.4 k vertices (GarmentCode pencil dress, 1.16 m^2): a shirt and skirt together, a suit, 4.0 k.
+DEFAULT_SPACING = 0.02
 #: Lattice points closer to the outline than this many spacings are left out: above 0.5 no interior point can
 #: stand in the diametral circle of a boundary segment (at most a spacing long), and the band between the
 #: lattice and the outline stays under about 1.6 spacings wide.
@@ -114,7 +116,7 @@ class PatternMesh:
 
         Returns
         -------
-        WeldedMesh
+        vfit_engine.pattern.weld.WeldedMesh
 
         Raises
         ------
@@ -129,24 +131,24 @@ class PatternMesh:
         middle on the whole); a pattern without placement keeps its first panel's orientation (+z of its frame,
         the face of a piece cut face up).
         """
-        index = _weld_index(self.vertex_count, self.seam_pairs)
+        index = weld.weld_index(self.vertex_count, self.seam_pairs)
         faces = index[self.faces]
         self._refuse_collapsed(faces)
         count = int(index.max()) + 1 if index.size else 0
-        flip, consistent = _panel_flips(faces, self.face_panel, len(self.panel_names))
-        if self.xyz is not None and _outward(self.xyz, self.faces, flip[self.face_panel]) < 0:
+        flip, consistent = weld.panel_flips(faces, self.face_panel, len(self.panel_names))
+        if self.xyz is not None and weld.outward(self.xyz, self.faces, flip[self.face_panel]) < 0:
             flip = ~flip
         reverse = flip[self.face_panel]
         order = np.where(reverse[:, None], [0, 2, 1], [0, 1, 2])
         corners = np.take_along_axis(self.faces, order, axis=1)
         on_seam = np.zeros(count, dtype=bool)
         on_seam[index[self.seam_pairs.ravel()]] = True
-        return WeldedMesh(count, index[corners], self.uv[corners], self.yarn_uv()[corners], index, on_seam,
+        return weld.WeldedMesh(count, index[corners], self.uv[corners], self.yarn_uv()[corners], index, on_seam,
                           self.face_panel, flip, consistent)
 
     def _refuse_collapsed(self, faces):
         """InputError naming the panel and the edges of the first face that sewing collapses or doubles."""
-        flat, doubled = _sewing_faults(faces)
+        flat, doubled = weld.sewing_faults(faces)
         bad = np.flatnonzero(flat | doubled)
         if not bad.size:
             return
@@ -159,87 +161,6 @@ class PatternMesh:
                          f"({where[0]:.3f}, {where[1]:.3f}) m {what} when its seams are sewn "
                          f"({', '.join(on) or 'no edge'}; {bad.size} such triangles): the stitches there join "
                          "points closer than the spacing; check those stitches or mesh with a smaller spacing")
-
-
-@dataclass(frozen=True, eq=False)
-class WeldedMesh:
-    """The sewn garment as one triangle mesh; its faces are the pattern's faces, one for one, in their order
-    (the corners of a ``flipped`` panel's faces in reverse order).
-
-    Attributes
-    ----------
-    vertex_count : int
-    faces : (m, 3) int64
-        Triangles on the welded vertices (``PatternMesh.faces`` through ``welded_index``), oriented one way.
-    corner_uv : (m, 3, 2) float64, m
-        Each face corner's place in its panel's frame (the flat pattern: a seam vertex has one per panel).
-    corner_yarn_uv : (m, 3, 2) float64, m
-        The same turned so that the warp runs along +V (:meth:`PatternMesh.yarn_uv`).
-    welded_index : (n,) int64
-        The welded vertex of every pattern vertex.
-    on_seam : (w,) bool
-        Welded vertices on a seam.
-    face_panel : (m,) int64
-        The panel of each face (index into ``PatternMesh.panel_names``).
-    flipped : (p,) bool
-        Panels whose faces are reversed from ``PatternMesh.faces`` (clockwise in their frame) so that the sewn
-        surface is oriented one way (:meth:`PatternMesh.welded`).
-    consistent : bool
-        Whether one orientation fits every seam (False for a surface with a twist, a seam sewn right side to
-        wrong side round a loop).
-    """
-
-    vertex_count: int
-    faces: np.ndarray
-    corner_uv: np.ndarray
-    corner_yarn_uv: np.ndarray
-    welded_index: np.ndarray
-    on_seam: np.ndarray
-    face_panel: np.ndarray
-    flipped: np.ndarray
-    consistent: bool = True
-
-    def average(self, values):
-        """(w, ...) float64: per welded vertex, the mean of ``values`` (n, ...) over the pattern vertices welded
-        into it (the placed panels' 3D positions give the sewn garment's start this way)."""
-        values = np.asarray(values, dtype=np.float64)
-        total = np.zeros((self.vertex_count,) + values.shape[1:])
-        np.add.at(total, self.welded_index, values)
-        count = np.bincount(self.welded_index, minlength=self.vertex_count)
-        return total / count.reshape((-1,) + (1,) * (values.ndim - 1))
-
-    def edge_use(self):
-        """(unique edges (e, 2) int64 with the smaller index first, the number of faces using each (e,))."""
-        e = np.sort(np.concatenate([self.faces[:, [0, 1]], self.faces[:, [1, 2]], self.faces[:, [2, 0]]]), axis=1)
-        return np.unique(e, axis=0, return_counts=True)
-
-    def boundary_loops(self):
-        """The openings: closed loops of boundary edges (used by one face), each (L,) int64 in walking order
-        following the faces' orientation. Open chains (a non-manifold border) are returned as they end."""
-        f = self.faces
-        directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-        edges, counts = self.edge_use()
-        once = {tuple(e) for e in edges[counts == 1].tolist()}
-        nxt = {}
-        for a, b in directed.tolist():
-            if (min(a, b), max(a, b)) in once:
-                nxt.setdefault(a, []).append(b)
-        loops, used = [], set()
-        for start in sorted(nxt):
-            for b in nxt[start]:
-                if (start, b) in used:
-                    continue
-                loop, a = [start], start
-                while (a, b) not in used:
-                    used.add((a, b))
-                    if b == start:
-                        break
-                    loop.append(b)
-                    a, b = b, next((c for c in nxt.get(b, ()) if (b, c) not in used), None)
-                    if b is None:
-                        break
-                loops.append(np.array(loop, dtype=np.int64))
-        return loops
 
 
 def triangle_quality(uv, faces):
@@ -306,80 +227,7 @@ def mesh_pattern(pattern, spacing=DEFAULT_SPACING):
     return _assemble(pattern, panels)
 
 
-# ---------------------------------------------------------------------- boundary counts, stitches, welding
-def _weld_index(count, pairs):
-    """(count,) int64: the welded vertex of each of ``count`` vertices sewn by ``pairs``, numbered in the order of
-    their first vertex (stable, and the identity when nothing is sewn)."""
-    labels = _components(count, pairs)
-    first = np.full(labels.max() + 1 if count else 0, count, dtype=np.int64)
-    np.minimum.at(first, labels, np.arange(count))
-    rank = np.empty_like(first)
-    rank[np.argsort(first, kind="stable")] = np.arange(first.size)
-    return rank[labels]
-
-
-def _sewing_faults(faces):
-    """(collapsed (m,) bool, doubled (m,) bool) of triangles on welded vertices: two corners on one vertex, or
-    the same three vertices as an earlier triangle."""
-    flat = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
-    _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
-    doubled = np.ones(len(faces), dtype=bool)
-    doubled[first] = False
-    return flat, doubled
-
-
-def _panel_flips(faces, face_panel, panel_count):
-    """Which panels to reverse so that every edge two faces share runs opposite ways in them.
-
-    Returns (flip (p,) bool, consistent bool); a breadth-first walk over the panels joined by shared edges,
-    each panel's faces being consistent already (all counter-clockwise in its frame).
-    """
-    a = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])
-    b = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
-    panel = np.tile(face_panel, 3)
-    n = int(faces.max()) + 1 if faces.size else 0
-    key = np.minimum(a, b) * n + np.maximum(a, b)
-    order = np.argsort(key, kind="stable")
-    key, forward, panel = key[order], (a < b)[order], panel[order]
-    two = np.flatnonzero((key[1:] == key[:-1]) & np.r_[True, key[1:-1] != key[:-2]] & np.r_[key[2:] != key[1:-1], True])
-    links = {}
-    for i in two.tolist():
-        p, q, same = int(panel[i]), int(panel[i + 1]), bool(forward[i] == forward[i + 1])
-        links.setdefault(p, []).append((q, same))
-        links.setdefault(q, []).append((p, same))
-    flip, seen, consistent = np.zeros(panel_count, dtype=bool), np.zeros(panel_count, dtype=bool), True
-    for root in range(panel_count):
-        if seen[root]:
-            continue
-        seen[root], stack = True, [root]
-        while stack:
-            p = stack.pop()
-            for q, same in links.get(p, ()):
-                want = flip[p] ^ same
-                if not seen[q]:
-                    seen[q], flip[q] = True, want
-                    stack.append(q)
-                elif flip[q] != want:
-                    consistent = False
-    return flip, consistent
-
-
-def _outward(xyz, faces, reverse):
-    """Sum over the faces, reversed where ``reverse``, of their area normals dotted with their centroid's offset
-    from the garment's middle: positive when they face outwards on the whole."""
-    f = np.where(reverse[:, None], faces[:, [0, 2, 1]], faces)
-    p = xyz[f]
-    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    return float(np.sum(normal * (p.mean(axis=1) - xyz.mean(axis=0))))
-
-
-def _components(count, pairs):
-    """(count,) int64: the connected component of each of ``count`` items joined by ``pairs`` (k, 2)."""
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(count, count))
-    return connected_components(graph, directed=False)[1].astype(np.int64)
-
-
+# ---------------------------------------------------------------------- boundary counts and stitches
 def _check_ref(pattern, ref, k):
     panel = pattern.panels.get(ref.panel)
     if panel is None:
@@ -409,7 +257,7 @@ def _edge_counts(pattern, spacing):
     for k, s in enumerate(pattern.stitches):
         _check_ref(pattern, s.a, k)
         _check_ref(pattern, s.b, k)
-    comp = _components(len(refs), [(where[s.a], where[s.b]) for s in pattern.stitches])
+    comp = weld.components(len(refs), [(where[s.a], where[s.b]) for s in pattern.stitches])
     own = np.maximum(1, np.ceil(lengths / spacing - 1e-9)).astype(np.int64)
     counts = np.zeros(comp.max() + 1 if len(comp) else 0, dtype=np.int64)
     np.maximum.at(counts, comp, own)
@@ -566,51 +414,6 @@ def _mesh_panel(source, name, panel, per_edge, spacing):
     return pts, faces, edge_index
 
 
-def _split_for_sewing(uv, vertex_panel, faces, seam_pairs, rounds=4):
-    """Split the interior edges of the triangles that sewing would collapse or double, at their midpoints.
-
-    A triangle on three consecutive vertices of a seam (an ear at a corner of the outline, common where an edge
-    a few millimetres long meets the next) lands on the same three welded vertices as the ear across the seam;
-    a triangle joining two vertices sewn to each other collapses. Splitting the triangle's interior edge puts
-    an unsewn vertex into it. Returns (uv, vertex_panel, faces) with the new vertices appended.
-    """
-    uv, vp, faces = uv.copy(), vertex_panel.copy(), faces.copy()
-    for _ in range(rounds):
-        index = _weld_index(len(uv), seam_pairs)
-        welded = index[faces]
-        flat, doubled = _sewing_faults(welded)
-        bad = np.flatnonzero(flat | doubled)
-        if not bad.size:
-            break
-        e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-        keys, uses = np.unique(e, axis=0, return_counts=True)
-        interior = {tuple(k) for k in keys[uses == 2].tolist()}
-        split = set()
-        for f in bad.tolist():
-            sides = [tuple(sorted((faces[f, k], faces[f, (k + 1) % 3]))) for k in range(3)]
-            sides = [sd for sd in sides if sd in interior]
-            if flat[f]:
-                sides = [sd for sd in sides if index[sd[0]] == index[sd[1]]] or sides
-            if sides:
-                split.add(max(sides, key=lambda sd: np.linalg.norm(uv[sd[0]] - uv[sd[1]])))
-        if not split:
-            break
-        for a, b in sorted(split):
-            m = len(uv)
-            uv = np.vstack([uv, 0.5 * (uv[a] + uv[b])])
-            vp = np.append(vp, vp[a])
-            keep, new = [], []
-            for tri in faces.tolist():
-                k = next((k for k in range(3) if {tri[k], tri[(k + 1) % 3]} == {a, b}), None)
-                if k is None:
-                    keep.append(tri)
-                    continue
-                p, q, r = tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]
-                new += [[p, m, r], [m, q, r]]
-            faces = np.array(keep + new, dtype=np.int64)
-    return uv, vp, faces
-
-
 def _assemble(pattern, panels):
     """One PatternMesh from the panels' meshes, their vertices numbered panel after panel."""
     uv, vp, faces, edge_vertices, grain, at = [], [], [], {}, [], 0
@@ -624,7 +427,7 @@ def _assemble(pattern, panels):
         grain.append(g / np.linalg.norm(g))
         at += len(pts)
     seam_pairs = _seam_pairs(pattern, edge_vertices)
-    uv, vp, faces = _split_for_sewing(np.concatenate(uv), np.concatenate(vp), np.concatenate(faces), seam_pairs)
+    uv, vp, faces = weld.split_for_sewing(np.concatenate(uv), np.concatenate(vp), np.concatenate(faces), seam_pairs)
     # the split edges' midpoints back among their panels' vertices, so that a panel's vertices stay consecutive
     order = np.argsort(vp, kind="stable")
     new = np.empty_like(order)
