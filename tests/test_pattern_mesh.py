@@ -284,11 +284,16 @@ def test_edges_out_of_order_are_refused():
         mesh.mesh_pattern(Pattern({"p": panel}, []), 0.1)
 
 
-def test_a_crossing_outline_is_refused():
-    v = np.array([[0, 0], [0.4, 0.4], [0.4, 0], [0, 0.4]], float)  # a bow tie
+@pytest.mark.parametrize("corners, message", [
+    ([[0, 0], [0.4, 0.3], [0.4, 0], [0, 0.4]], r"edge 0: the outline crosses itself near \(0.229, 0.171\) m"),
+    ([[0, 0], [0.4, 0.4], [0.4, 0], [0, 0.4]], r"its outline passes twice through \(0.2000, 0.2000\) m"),
+])
+def test_a_crossing_outline_is_refused(corners, message):
+    """Two bow ties: one crossing between samples (the crossing named), one through a sample of both edges."""
+    v = np.array(corners, float)
     panel = Panel("bow", v, [Edge(k, (k + 1) % 4) for k in range(4)])
-    with pytest.raises(InputError, match="panel 'bow'"):
-        mesh.mesh_pattern(Pattern({"bow": panel}, []), 0.05)
+    with pytest.raises(InputError, match="^b.json: panel 'bow'.*" + message):
+        mesh.mesh_pattern(Pattern({"bow": panel}, [], source="b.json"), 0.05)
 
 
 # ---------------------------------------------------------------------- the shared patterns

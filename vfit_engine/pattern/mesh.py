@@ -222,8 +222,9 @@ def mesh_pattern(pattern, spacing=DEFAULT_SPACING):
     else:
         ref = refs[missing[0]]
         raise InputError(f"{pattern.source}: panel {ref.panel!r}, edge {ref.edge}: its outline comes too close to "
-                         f"itself for a mesh at a spacing of {spacing * 1000:.1f} mm even after {REFINE_ROUNDS} "
-                         "refinements of the edge; check the outline there or mesh with a smaller spacing")
+                         f"itself (or crosses itself) for a mesh at a spacing of {spacing * 1000:.1f} mm even after "
+                         f"{REFINE_ROUNDS} refinements of the edge; check the outline there or mesh with a smaller "
+                         "spacing")
     return _assemble(pattern, panels)
 
 
@@ -338,6 +339,24 @@ def _crossings(points, poly):
     return out
 
 
+def _crossing(poly, k):
+    """Where segment ``k`` of the closed polyline ``poly`` properly crosses another of its segments, or None."""
+    p, r = poly[k], poly[(k + 1) % len(poly)] - poly[k]
+    a, b = poly, np.roll(poly, -1, axis=0)
+    s = b - a
+    den = r[0] * s[:, 1] - r[1] * s[:, 0]
+    q = a - p
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (q[:, 0] * s[:, 1] - q[:, 1] * s[:, 0]) / den
+        u = (q[:, 0] * r[1] - q[:, 1] * r[0]) / den
+    eps = 1e-9
+    hit = (np.abs(den) > 0) & (t > eps) & (t < 1 - eps) & (u > eps) & (u < 1 - eps)
+    hit[[k - 1, k, (k + 1) % len(poly)]] = False
+    if not hit.any():
+        return None
+    return p + t[np.flatnonzero(hit)[0]] * r
+
+
 def _clearance(points, poly):
     """(p,) float64: the distance of each point to the closed polyline ``poly``."""
     a, b = poly, np.roll(poly, -1, axis=0)
@@ -399,7 +418,12 @@ def _mesh_panel(source, name, panel, per_edge, spacing):
     found = np.isin(np.sort(seg, axis=1) @ [n, 1], have @ [n, 1])
     if not found.all():
         gone = int(np.flatnonzero(~found)[0])
-        return next(i for i, ix in enumerate(edge_index) if gone in ix[:-1])
+        edge = next(i for i, ix in enumerate(edge_index) if gone in ix[:-1])
+        crossing = _crossing(bnd, gone)
+        if crossing is not None:
+            raise InputError(f"{source}: panel {name!r}, edge {edge}: the outline crosses itself near "
+                             f"({crossing[0]:.3f}, {crossing[1]:.3f}) m; fix the crossing edges")
+        return edge
     faces = faces[_crossings(pts[faces].mean(axis=1), bnd)]
     p = pts[faces]
     signed = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
