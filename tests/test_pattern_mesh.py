@@ -117,6 +117,26 @@ def test_a_curved_panel_is_covered_to_its_chords():
     assert math.pi * r * r / 2 - area.sum() > 0.5 * n * r * r / 2 * (theta - math.sin(theta))  # the chords cut
 
 
+def test_a_slit_narrower_than_the_spacing_refines_its_lips():
+    """A 4 mm slit cut 25 cm into a panel meshed at 50 mm: the lips' segments are not Delaunay edges at their own
+    counts (5), so the lips are refined until every boundary segment is an edge; nothing is dropped and the
+    triangles cover the panel less the slit exactly."""
+    g = 0.004
+    v = np.array([[0, 0], [0.4, 0], [0.4, 0.3], [0.2 + g / 2, 0.3], [0.2 + g / 2, 0.05], [0.2 - g / 2, 0.07],
+                  [0.2 - g / 2, 0.3], [0, 0.3]])
+    m = mesh.mesh_pattern(Pattern({"s": Panel("s", v, [Edge(k, (k + 1) % 8) for k in range(8)])}, []), 0.05)
+    lips = [len(m.edge_vertices[EdgeRef("s", k)]) - 1 for k in (3, 5)]
+    assert lips[0] == lips[1] > 5
+    assert len(m.edge_vertices[EdgeRef("s", 0)]) - 1 == 8        # the other edges keep their counts
+    keys, uses = edge_uses(m.faces)
+    use = dict(zip(map(tuple, keys.tolist()), uses.tolist()))
+    for ix in m.edge_vertices.values():
+        assert all(use.get(tuple(sorted(e)), 0) == 1 for e in zip(ix[:-1].tolist(), ix[1:].tolist()))
+    area = signed_areas(m.uv, m.faces)
+    assert np.all(area > 0)
+    assert abs(area.sum() - (0.4 * 0.3 - g * (0.25 + 0.23) / 2)) < 1e-12
+
+
 # ---------------------------------------------------------------------- stitches
 def test_stitched_edges_take_the_larger_count_through_chains():
     """a's right edge (0.50 m) to b's left (0.52 m), b's right (0.52 m) to c's left (0.61 m): each stitch's edges
