@@ -15,12 +15,19 @@ along U (:func:`PatternMesh.yarn_uv`), not from the mesh's edges. A lattice with
 gives scipy's Delaunay a unique triangulation. Lattice points closer than ``CLEARANCE`` spacings to the outline
 are left out, so no interior point can lie in a boundary segment's diametral circle.
 
-Triangulation. scipy's Delaunay (Qhull, BSD-like licence) of the boundary samples and the lattice, then a check
-that every boundary segment is a Delaunay edge: one that is not (the outline comes closer to itself than a
-spacing, or an acute corner next to a short edge) refines every edge stitched to that edge's one and meshes
+Triangulation. scipy's Delaunay (Qhull, BSD-like licence) of the boundary samples and the lattice (with four far
+corners, so that no straight edge's samples lie on the hull, where Qhull makes flat triangles), then a check that
+every boundary segment is a Delaunay edge: one that is not (the outline comes closer to itself than a spacing, or
+an acute corner next to a short edge) refines its edge and every edge stitched to it, and the panels are meshed
 again; a segment is never dropped. With every boundary segment an edge, no triangle crosses the outline, and
 those whose centroid is outside it are removed. Faces are oriented counter-clockwise in the panel frame (normal
 +z), whichever way the outline winds.
+
+Seams. Each stitch pairs its edges' vertices one for one (``PatternMesh.seam_pairs``, direction by
+:func:`_stitch_opposed`). A triangle that sewing would collapse or lay on another's three vertices (an ear at a
+corner between two sewn edges, where an edge a few millimetres long meets the next, as in GarmentCode's
+armholes) has its interior edge split first (:func:`vfit_engine.pattern.weld.split_for_sewing`);
+:meth:`PatternMesh.welded` gives the sewn garment as one mesh.
 """
 from __future__ import annotations
 
@@ -144,7 +151,7 @@ class PatternMesh:
         on_seam = np.zeros(count, dtype=bool)
         on_seam[index[self.seam_pairs.ravel()]] = True
         return weld.WeldedMesh(count, index[corners], self.uv[corners], self.yarn_uv()[corners], index, on_seam,
-                          self.face_panel, flip, consistent)
+                               self.face_panel, flip, consistent)
 
     def _refuse_collapsed(self, faces):
         """InputError naming the panel and the edges of the first face that sewing collapses or doubles."""
@@ -157,7 +164,7 @@ class PatternMesh:
                      if np.isin(self.faces[f], vs).any()})
         what = "collapses to a line" if flat[f] else "lands on another triangle's three vertices"
         where = self.uv[self.faces[f]].mean(axis=0)
-        raise InputError(f"{self.source}: panel {self.panel_names[self.face_panel[f]]!r}: the triangle at "
+        raise InputError(f"{_file(self.source)}panel {self.panel_names[self.face_panel[f]]!r}: the triangle at "
                          f"({where[0]:.3f}, {where[1]:.3f}) m {what} when its seams are sewn "
                          f"({', '.join(on) or 'no edge'}; {bad.size} such triangles): the stitches there join "
                          "points closer than the spacing; check those stitches or mesh with a smaller spacing")
@@ -202,7 +209,7 @@ def mesh_pattern(pattern, spacing=DEFAULT_SPACING):
     """
     spacing = float(spacing)
     if not math.isfinite(spacing) or spacing <= 0:
-        raise InputError(f"{pattern.source}: the mesh spacing must be a positive length, not {spacing} m")
+        raise InputError(f"{_file(pattern.source)}the mesh spacing must be a positive length, not {spacing} m")
     refs, comp, counts = _edge_counts(pattern, spacing)
     where = {r: k for k, r in enumerate(refs)}
     for _ in range(REFINE_ROUNDS + 1):
@@ -221,7 +228,7 @@ def mesh_pattern(pattern, spacing=DEFAULT_SPACING):
             counts[k] = max(counts[k] + 1, math.ceil(1.5 * counts[k]))
     else:
         ref = refs[missing[0]]
-        raise InputError(f"{pattern.source}: panel {ref.panel!r}, edge {ref.edge}: its outline comes too close to "
+        raise InputError(f"{_file(pattern.source)}panel {ref.panel!r}, edge {ref.edge}: its outline comes too close to "
                          f"itself (or crosses itself) for a mesh at a spacing of {spacing * 1000:.1f} mm even after "
                          f"{REFINE_ROUNDS} refinements of the edge; check the outline there or mesh with a smaller "
                          "spacing")
@@ -229,12 +236,17 @@ def mesh_pattern(pattern, spacing=DEFAULT_SPACING):
 
 
 # ---------------------------------------------------------------------- boundary counts and stitches
+def _file(source):
+    """The start of an error message: the pattern's file, when it has one."""
+    return f"{source}: " if source else ""
+
+
 def _check_ref(pattern, ref, k):
     panel = pattern.panels.get(ref.panel)
     if panel is None:
-        raise InputError(f"{pattern.source}: stitch {k} names panel {ref.panel!r}, which the pattern does not have")
+        raise InputError(f"{_file(pattern.source)}stitch {k} names panel {ref.panel!r}, which the pattern does not have")
     if not 0 <= ref.edge < len(panel.edges):
-        raise InputError(f"{pattern.source}: stitch {k} names edge {ref.edge} of panel {ref.panel!r}, which has "
+        raise InputError(f"{_file(pattern.source)}stitch {k} names edge {ref.edge} of panel {ref.panel!r}, which has "
                          f"edges 0 to {len(panel.edges) - 1}")
 
 
@@ -248,12 +260,12 @@ def _edge_counts(pattern, spacing):
     lengths = np.array([pattern.edge_length(r) for r in refs], dtype=np.float64)
     for r, length in zip(refs, lengths):
         if not length > spacing * 1e-6:
-            raise InputError(f"{pattern.source}: panel {r.panel!r}, edge {r.edge} has no length ({length} m); "
+            raise InputError(f"{_file(pattern.source)}panel {r.panel!r}, edge {r.edge} has no length ({length} m); "
                              "remove it or move its ends apart")
     area = sum(abs(_signed_area(p.outline())) for p in pattern.panels.values())
     estimate = 1.2 * area / spacing ** 2 + lengths.sum() / spacing
     if estimate > MAX_VERTICES:
-        raise InputError(f"{pattern.source}: a spacing of {spacing * 1000:g} mm would give about "
+        raise InputError(f"{_file(pattern.source)}a spacing of {spacing * 1000:g} mm would give about "
                          f"{estimate:,.0f} vertices (more than {MAX_VERTICES:,}); use a larger spacing")
     for k, s in enumerate(pattern.stitches):
         _check_ref(pattern, s.a, k)
@@ -310,12 +322,12 @@ def _boundary(source, name, panel, per_edge):
     """The outline sampled by arc length: points (b, 2) in loop order and each edge's indices into them."""
     k = len(panel.edges)
     if k < 2:
-        raise InputError(f"{source}: panel {name!r} has {k} edge(s); an outline needs a closed loop of edges")
+        raise InputError(f"{_file(source)}panel {name!r} has {k} edge(s); an outline needs a closed loop of edges")
     pts, index, at = [], [], 0
     for i, e in enumerate(panel.edges):
         nxt = panel.edges[(i + 1) % k]
         if e.end != nxt.start:
-            raise InputError(f"{source}: panel {name!r}, edge {i} ends at vertex {e.end} but edge {(i + 1) % k} "
+            raise InputError(f"{_file(source)}panel {name!r}, edge {i} ends at vertex {e.end} but edge {(i + 1) % k} "
                              f"starts at vertex {nxt.start}: the edges must follow each other round the outline")
         n = per_edge[i]
         pts.append(panel.edge_points(i, np.arange(n) / n))
@@ -391,11 +403,11 @@ def _mesh_panel(source, name, panel, per_edge, spacing):
     segment the Delaunay triangulation missed (the caller refines it)."""
     bnd, edge_index = _boundary(source, name, panel, per_edge)
     if not np.all(np.isfinite(bnd)):
-        raise InputError(f"{source}: panel {name!r}: its outline has coordinates that are not numbers")
+        raise InputError(f"{_file(source)}panel {name!r}: its outline has coordinates that are not numbers")
     grain = np.asarray(panel.grain, dtype=np.float64)
     norm = float(np.linalg.norm(grain))
     if not (math.isfinite(norm) and norm > 0):
-        raise InputError(f"{source}: panel {name!r}: its grain line has no direction ({panel.grain})")
+        raise InputError(f"{_file(source)}panel {name!r}: its grain line has no direction ({panel.grain})")
     pts = np.concatenate([bnd, _lattice(bnd, grain / norm, spacing)])
     b, n = len(bnd), len(pts)
     # four far corners round the panel, so that no point of it lies on the convex hull: collinear points on a
@@ -405,11 +417,11 @@ def _mesh_panel(source, name, panel, per_edge, spacing):
     try:
         tri = Delaunay(np.concatenate([pts, far]))
     except QhullError as exc:
-        raise InputError(f"{source}: panel {name!r}: its outline encloses no area ({str(exc).splitlines()[0]})") \
+        raise InputError(f"{_file(source)}panel {name!r}: its outline encloses no area ({str(exc).splitlines()[0]})") \
             from None
     if len(tri.coplanar):
         v = int(tri.coplanar[0, 0])
-        raise InputError(f"{source}: panel {name!r}: its outline passes twice through ({pts[v, 0]:.4f}, "
+        raise InputError(f"{_file(source)}panel {name!r}: its outline passes twice through ({pts[v, 0]:.4f}, "
                          f"{pts[v, 1]:.4f}) m; an outline must not touch itself")
     faces = tri.simplices.astype(np.int64)
     faces = faces[np.all(faces < n, axis=1)]
@@ -421,7 +433,7 @@ def _mesh_panel(source, name, panel, per_edge, spacing):
         edge = next(i for i, ix in enumerate(edge_index) if gone in ix[:-1])
         crossing = _crossing(bnd, gone)
         if crossing is not None:
-            raise InputError(f"{source}: panel {name!r}, edge {edge}: the outline crosses itself near "
+            raise InputError(f"{_file(source)}panel {name!r}, edge {edge}: the outline crosses itself near "
                              f"({crossing[0]:.3f}, {crossing[1]:.3f}) m; fix the crossing edges")
         return edge
     faces = faces[_crossings(pts[faces].mean(axis=1), bnd)]
@@ -432,7 +444,7 @@ def _mesh_panel(source, name, panel, per_edge, spacing):
     signed = np.abs(signed)
     outline = abs(_signed_area(bnd))
     if abs(signed.sum() - outline) > 1e-9 * outline or not signed.min() > 1e-9 * spacing ** 2:
-        raise InputError(f"{source}: panel {name!r}: its outline crosses itself (the triangles inside it cover "
+        raise InputError(f"{_file(source)}panel {name!r}: its outline crosses itself (the triangles inside it cover "
                          f"{signed.sum():.4f} m^2, the outline's area is {outline:.4f} m^2); "
                          "fix the crossing edges")
     return pts, faces, edge_index

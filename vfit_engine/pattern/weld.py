@@ -201,8 +201,8 @@ def split_for_sewing(uv, vertex_panel, faces, seam_pairs, rounds=4):
         for f in bad.tolist():
             sides = [tuple(sorted((faces[f, k], faces[f, (k + 1) % 3]))) for k in range(3)]
             sides = [sd for sd in sides if sd in interior]
-            if flat[f]:
-                sides = [sd for sd in sides if index[sd[0]] == index[sd[1]]] or sides
+            if flat[f]:   # only the side whose ends weld together: splitting another leaves them in one face
+                sides = [sd for sd in sides if index[sd[0]] == index[sd[1]]]
             if sides:
                 split.add(max(sides, key=lambda sd: np.linalg.norm(uv[sd[0]] - uv[sd[1]])))
         if not split:
@@ -211,13 +211,11 @@ def split_for_sewing(uv, vertex_panel, faces, seam_pairs, rounds=4):
             m = len(uv)
             uv = np.vstack([uv, 0.5 * (uv[a] + uv[b])])
             vp = np.append(vp, vp[a])
-            keep, new = [], []
-            for tri in faces.tolist():
-                k = next((k for k in range(3) if {tri[k], tri[(k + 1) % 3]} == {a, b}), None)
-                if k is None:
-                    keep.append(tri)
-                    continue
+            on = np.flatnonzero(np.any(faces == a, axis=1) & np.any(faces == b, axis=1))
+            new = []
+            for tri in faces[on].tolist():   # the two faces of the edge, each halved keeping its orientation
+                k = next(k for k in range(3) if {tri[k], tri[(k + 1) % 3]} == {a, b})
                 p, q, r = tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]
                 new += [[p, m, r], [m, q, r]]
-            faces = np.array(keep + new, dtype=np.int64)
+            faces = np.concatenate([np.delete(faces, on, axis=0), np.array(new, dtype=np.int64)])
     return uv, vp, faces
