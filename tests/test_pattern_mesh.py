@@ -203,6 +203,14 @@ def test_two_rectangles_sew_into_a_tube(clockwise_b, placed):
     assert w.consistent
     assert w.on_seam.sum() == 2 * n
     assert not w.flipped.any()  # cut face up, or placed facing out: +z of both frames is the outside
+    # the rest lengths: every edge as long as in the flat pattern; the seams' segments h / (n - 1) in both panels
+    rest_edges, rest = w.flat_edge_lengths()
+    np.testing.assert_array_equal(rest_edges, edges)
+    seam = w.on_seam[rest_edges].all(axis=1) & (np.abs(np.diff(w.average(m.uv[:, 1])[rest_edges], axis=1)[:, 0])
+                                                 > 1e-9)
+    np.testing.assert_allclose(rest[seam], 0.5 / (n - 1), rtol=1e-12)
+    assert seam.sum() == 2 * (n - 1)
+    assert rest.min() > 0.3 * 0.02 and rest.max() < 2 * 0.02
     # the seam's pairs at one height: the pairing ran the right way
     ya, yb = m.uv[m.seam_pairs[:, 0], 1], m.uv[m.seam_pairs[:, 1], 1]
     np.testing.assert_allclose(ya, yb, atol=1e-12)

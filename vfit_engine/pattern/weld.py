@@ -65,6 +65,20 @@ class WeldedMesh:
         e = np.sort(np.concatenate([self.faces[:, [0, 1]], self.faces[:, [1, 2]], self.faces[:, [2, 0]]]), axis=1)
         return np.unique(e, axis=0, return_counts=True)
 
+    def flat_edge_lengths(self):
+        """(unique edges (e, 2) int64, their rest lengths (e,) float64, m): each edge's length in the flat
+        pattern, the mean over the faces using it (a seam's two sides differ by the ease sewn into it). The sewn
+        garment's rest shape is the flat pattern, which no single 3D shape holds; these are its edges' share."""
+        f = self.faces
+        a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
+        b = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+        d = np.concatenate([np.linalg.norm(self.corner_uv[:, (k + 1) % 3] - self.corner_uv[:, k], axis=1)
+                            for k in range(3)])
+        edges, inverse = np.unique(np.sort(np.stack([a, b], axis=1), axis=1), axis=0, return_inverse=True)
+        inverse = inverse.ravel()
+        total = np.bincount(inverse, weights=d, minlength=len(edges))
+        return edges, total / np.bincount(inverse, minlength=len(edges))
+
     def flat_length(self, loop):
         """Length, m, of a closed boundary loop (from :meth:`boundary_loops`) measured on the flat pattern: each of
         its edges in the panel of the one face using it."""
