@@ -118,12 +118,14 @@ def test_bare_pattern_defaults_to_cm_and_no_frame(tmp_path):
 
 
 def test_frame_rule(tmp_path):
-    spec = one_edge_spec(None)
+    spec = one_edge_spec(None)  # placed at y = 1 m, with normalized_edge_loops: GarmentCode
     assert garmentcode.read(write(tmp_path, spec)).frame == "garmentcode"
-    del spec["properties"]["normalized_edge_loops"]
+    spec["parameters"] = {"len": {"influence": [], "type": "length", "value": 1}}  # GPG's parametric template
     assert garmentcode.read(write(tmp_path, spec)).frame == "gpg"
-    spec["properties"]["normalized_edge_loops"] = True
-    spec["parameters"] = {"len": {"influence": [], "type": "length", "value": 1}}
+    del spec["parameters"]
+    del spec["properties"]["normalized_edge_loops"]  # neither key: by height, 1 m up is the floor frame
+    assert garmentcode.read(write(tmp_path, spec)).frame == "garmentcode"
+    spec["pattern"]["panels"]["p"]["translation"] = [0, 30, 10]  # its top at 0.3 m: SMPL's pelvis frame
     assert garmentcode.read(write(tmp_path, spec)).frame == "gpg"
 
 
@@ -193,6 +195,25 @@ def test_shared_necklines_and_armholes_curve_into_the_panel():
                 assert _inside(straight, mid), f"{name} {panel_name} edge {i}"
 
 
+@needs_shared
+@pytest.mark.parametrize("name", sorted(SHARED))
+def test_shared_winding_faces_out(name):
+    """In both dialects a counter-clockwise outline (positive signed area) faces +z of its panel frame; rotated
+    into 3D by R = Rz Ry Rx, that side faces away from the garment's centre for every panel (back panels run
+    clockwise, facing -z). A rotation of the wrong sign (R transposed) would turn the GPG skirt's side panels
+    inwards."""
+    pattern = garmentcode.read(PATTERNS / name)
+    outlines = {n: p.outline() for n, p in pattern.panels.items()}
+    centre = np.concatenate([p.to_3d(outlines[n]) for n, p in pattern.panels.items()]).mean(axis=0)
+    for n, panel in pattern.panels.items():
+        x, y = outlines[n][:, 0], outlines[n][:, 1]
+        area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+        normal = panel.rotation_matrix() @ np.array([0.0, 0.0, np.sign(area)])
+        out = panel.to_3d(outlines[n]).mean(axis=0) - centre
+        out[1] = 0.0  # away from the body's vertical axis
+        assert normal @ out > 0.25 * np.linalg.norm(out), n
+
+
 # ---------------------------------------------------------------------- refusals
 def _refused(tmp_path, spec, *words, raw=None):
     path = tmp_path / "bad.json"
@@ -208,6 +229,12 @@ def _refused(tmp_path, spec, *words, raw=None):
 
 def test_refuses_unreadable_json(tmp_path):
     _refused(tmp_path, None, "JSON", raw="{\"pattern\": [")
+    _refused(tmp_path, None, "JSON", raw="[" * 100000)
+    (tmp_path / "latin1.json").write_bytes(b"{\"pattern\": \"\xff\"}")
+    with pytest.raises(InputError, match="latin1.json: not a readable JSON"):
+        garmentcode.read(tmp_path / "latin1.json")
+    with pytest.raises(InputError, match="nothing.json: not a readable JSON"):
+        garmentcode.read(tmp_path / "nothing.json")
     _refused(tmp_path, [1, 2], "top level")
     _refused(tmp_path, {"pattern": {"stitches": []}}, "panels")
 
@@ -256,6 +283,20 @@ def test_refuses_stitch_to_missing_panel_or_edge(tmp_path, side, words):
     spec = one_edge_spec(None)
     spec["pattern"]["stitches"] = [[{"panel": "p", "edge": 0}, side]]
     _refused(tmp_path, spec, "stitch 0", *words)
+
+
+def test_circle_flags_as_booleans(tmp_path):
+    pattern = garmentcode.read(write(tmp_path, one_edge_spec({"type": "circle", "params": [20.0, False, True]})))
+    assert pattern.panels["p"].edge_length(0) == pytest.approx(math.pi * 0.2, rel=1e-9)
+
+
+def test_refuses_unhashable_names(tmp_path):
+    spec = one_edge_spec(None)
+    spec["pattern"]["stitches"] = [[{"panel": ["p"], "edge": 0}, {"panel": "p", "edge": 1}]]
+    _refused(tmp_path, spec, "stitch 0", "not in the pattern")
+    spec = one_edge_spec(None)
+    spec["pattern"]["panel_order"] = [{"a": 1}]
+    _refused(tmp_path, spec, "panel_order")
 
 
 def test_refuses_one_sided_stitch(tmp_path):

@@ -20,12 +20,17 @@ Stitches are lists of two ``{"panel", "edge"}`` sides, optionally followed by th
 (GarmentCode's flag for a seam joining a right side to a wrong side); other extra strings are ignored. Neither
 format says which way the two edges run against each other, so ``Stitch.opposed`` is None: placement decides.
 
-The frame (``Pattern.frame``): GarmentCode's pygarment writes ``properties.normalized_edge_loops`` into every
-specification and leaves ``parameters`` empty; GPG's templates lack that key and carry their parametric template
-(``parameters`` whose entries have ``influence`` lists). So a file is "gpg" when it has GPG's parameters or lacks
-``normalized_edge_loops``, else "garmentcode" (floor at y = 0, Y up); None when no panel has a ``translation``.
-The shared files agree: the GarmentCode panels sit at y = 0.11 to 1.11 m above the floor, the GPG skirt's at
-y = -0.35 m (SMPL's origin is at the pelvis).
+The frame (``Pattern.frame``), in this order:
+
+1. None when no panel has a ``translation`` (nothing placed);
+2. "gpg" when ``parameters`` hold GPG's parametric template (entries with ``influence`` lists): every GPG template
+   has them (23 of 23 in its repository), GarmentCode's pygarment writes ``parameters`` empty;
+3. "garmentcode" when ``properties.normalized_edge_loops`` is present: pygarment writes it into every
+   specification (8 of 8 in GarmentCode's repository);
+4. otherwise by where the garment is: "garmentcode" when its highest placed point is above ``FLOOR_FRAME_TOP_M``
+   (0.9 m), else "gpg". GarmentCode's frame has the floor at y = 0 (Y up), so a garment reaches at least the
+   waist: its highest point is 1.09 to 1.86 m in those 8 patterns. GPG's T-posed SMPL frame has its origin at the
+   pelvis: the highest points of the 23 templates are -0.05 to 0.75 m (a hood).
 
 Nothing here validates the pattern's geometry (closed loops, crossings, seam lengths): ``validate.validate`` does,
 for every format. This module refuses only what cannot be read at all.
@@ -42,6 +47,7 @@ from ..errors import InputError
 from . import model
 
 _DEFAULT_UNITS = 100.0  # GarmentCode's default when a file does not say (pygarment's template: cm)
+FLOOR_FRAME_TOP_M = 0.9  # a garment placed higher than this is in a frame with the floor at y = 0 (see above)
 _BODY_KEYS = ("height", "bust", "waist", "hips")  # a YAML beside the file is a GarmentCode body if it has these
 
 
@@ -86,8 +92,9 @@ def read(path):
     where = _Where(path)
     try:
         spec = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise where.error(f"not a readable JSON file ({str(exc).splitlines()[0]})",
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise where.error(f"not a readable JSON file ({reason})",
                           "give a GarmentCode specification .json") from None
     if not isinstance(spec, dict):
         raise where.error("the top level is not an object", "give a GarmentCode specification .json")
@@ -102,7 +109,7 @@ def read(path):
     names = _panel_order(pattern, where)
     panels = {name: _panel(name, pattern["panels"][name], units, relative, path) for name in names}
     stitches = [_stitch(i, s, panels, path) for i, s in enumerate(_list(pattern, "stitches", where))]
-    frame = _frame(spec, props, pattern)
+    frame = _frame(spec, props, pattern, panels)
     body = _body_beside(path) if frame == "garmentcode" else {}
     return model.Pattern(panels=panels, stitches=stitches, source=str(path), units_in_meter=units,
                          frame=frame, body=body)
@@ -138,22 +145,24 @@ def _panel_order(pattern, where):
     if not isinstance(order, list):
         raise where.error("'panel_order' is not a list", "give panel_order as a list of panel names")
     for name in order:
-        if name not in panels:
+        if not isinstance(name, str) or name not in panels:
             raise where.error(f"panel_order names panel {name!r}, which is not in 'panels'",
                               "remove it from panel_order or add the panel")
     listed = list(dict.fromkeys(order))
     return listed + [name for name in panels if name not in listed]
 
 
-def _frame(spec, props, pattern):
+def _frame(spec, props, pattern, panels):
     """"garmentcode", "gpg" or None, by the rule in the module docstring."""
     if not any(isinstance(p, dict) and "translation" in p for p in pattern["panels"].values()):
         return None
     params = spec.get("parameters")
-    gpg_params = isinstance(params, dict) and any(isinstance(p, dict) and "influence" in p for p in params.values())
-    if gpg_params or "normalized_edge_loops" not in props:
+    if isinstance(params, dict) and any(isinstance(p, dict) and "influence" in p for p in params.values()):
         return "gpg"
-    return "garmentcode"
+    if "normalized_edge_loops" in props:
+        return "garmentcode"
+    top = max(float(p.to_3d(p.vertices)[:, 1].max()) for p in panels.values())
+    return "garmentcode" if top > FLOOR_FRAME_TOP_M else "gpg"
 
 
 def _body_beside(path):
@@ -262,7 +271,8 @@ def _control(p, a, b, relative):
 
 def _arc_midpoint(params, a, b, where):
     """The midpoint of the arc ``[radius, large_arc, right]`` from ``a`` to ``b`` (pattern units)."""
-    if len(params) != 3 or not all(_finite_number(x) for x in params):
+    if len(params) != 3 or not _finite_number(params[0]) or not all(
+            isinstance(x, bool) or _finite_number(x) for x in params[1:]):
         raise where.error(f"circle params are {params!r}", "give [radius, large_arc (0/1), right (0/1)]")
     r, large, right = float(params[0]), bool(params[1]), bool(params[2])
     d = b - a
@@ -296,7 +306,7 @@ def _stitch(index, spec, panels, path):
 def _side(side, panels, path, index):
     name, edge = side.get("panel"), side.get("edge")
     where = _Where(path, stitch=index, panel=name, edge=edge)
-    if name not in panels:
+    if not isinstance(name, str) or name not in panels:
         raise where.error(f"names panel {name!r}, which is not in the pattern", "name one of " + ", ".join(panels))
     count = len(panels[name].edges)
     if isinstance(edge, bool) or not isinstance(edge, int) or not 0 <= edge < count:
