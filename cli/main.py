@@ -15,7 +15,7 @@ import click
 from ._common import Terminated, interruption
 
 #: the commands; each is the function of its name in the module of its name in this package
-COMMANDS = ("animate", "batch", "drape", "measure", "morph", "pose", "segment", "size", "transfer")
+COMMANDS = ("animate", "batch", "drape", "measure", "morph", "pattern", "pose", "segment", "size", "transfer")
 
 
 class OneLineErrors(click.Group):

@@ -1,0 +1,46 @@
+"""A pattern file, whatever its format, read and validated: the one way in for every command."""
+
+from pathlib import Path
+
+from ..errors import InputError
+from . import dxf_aama, garmentcode, validate
+
+#: file suffixes and what they hold
+FORMATS = {".json": "GarmentCode / Garment-Pattern-Generator specification", ".dxf": "DXF-AAMA pieces"}
+
+
+def is_pattern(path) -> bool:
+    """True when ``path`` names a pattern file by its suffix (a garment mesh is .obj / .ply / .glb)."""
+    return Path(path).suffix.lower() in FORMATS
+
+
+def load(path, seams=None):
+    """Read ``path`` (GarmentCode JSON, or DXF-AAMA with its ``seams`` sidecar) and validate it.
+
+    Returns
+    -------
+    (model.Pattern, list[str])
+        The pattern in metres and the validation's warnings (seams that ease a notable length, ...).
+
+    Raises
+    ------
+    InputError
+        An unreadable or malformed file, or a pattern that cannot be sewn, in one line naming the file, the panel
+        and the edge.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        if seams is not None:
+            raise InputError(f"{path}: a GarmentCode pattern carries its own stitches; --seams is for DXF-AAMA pieces")
+        pattern = garmentcode.read(path)
+    elif suffix == ".dxf":
+        if seams is not None and not Path(seams).is_file():
+            raise InputError(f"{seams}: no such file (the seams sidecar of {path})")
+        pattern = dxf_aama.read(path, seams)
+    else:
+        known = ", ".join(f"{k} ({v})" for k, v in FORMATS.items())
+        raise InputError(f"{path}: not a pattern file; vfit reads {known}")
+    return pattern, validate.validate(pattern)
