@@ -62,6 +62,8 @@ def show(pattern_file, png, seams):
 
     draw_pattern(pat, png)
     click.echo(f"vfit pattern show: {pattern_file}: {len(pat.panels)} panels, {len(pat.stitches)} seams")
+    if not pat.stitches and seams is None and pattern_file.lower().endswith(".dxf"):
+        click.echo("(DXF-AAMA carries no seams: give them with --seams SEAMS.json, docs/pattern-formats.md)")
     click.echo(_summary(pat))
     click.echo(f"wrote {png}")
 

@@ -223,17 +223,16 @@ def test_two_rectangles_sew_into_a_tube(clockwise_b, placed):
         assert np.all(np.einsum("ij,ij->i", normal[:, [0, 2]], out[:, [0, 2]]) > 0)
 
 
-def test_a_stitch_says_its_direction_and_garmentcode_sews_right_to_wrong_the_same_way():
+def test_a_stitch_says_its_direction():
     p, _ = _tube(opposed=False)
     m = mesh.mesh_pattern(p, 0.02)
     ya, yb = m.uv[m.seam_pairs[:, 0], 1], m.uv[m.seam_pairs[:, 1], 1]
     np.testing.assert_allclose(ya + yb, 0.5, atol=1e-12)          # same direction: heights mirrored
-    p.frame = "garmentcode"
-    p.stitches = [Stitch(s.a, s.b, None, right_wrong=k == 0) for k, s in enumerate(p.stitches)]
+    p.stitches = [Stitch(s.a, s.b, k != 0) for k, s in enumerate(p.stitches)]
     m = mesh.mesh_pattern(p, 0.02)
     n = len(m.edge_vertices[EdgeRef("a", 1)])
     ya, yb = m.uv[m.seam_pairs[:, 0], 1], m.uv[m.seam_pairs[:, 1], 1]
-    np.testing.assert_allclose(ya[:n] + yb[:n], 0.5, atol=1e-12)  # right_wrong: not swapped
+    np.testing.assert_allclose(ya[:n] + yb[:n], 0.5, atol=1e-12)  # not opposed: not swapped
     np.testing.assert_allclose(ya[n:], yb[n:], atol=1e-12)        # otherwise opposed
 
 

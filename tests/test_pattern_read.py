@@ -142,7 +142,7 @@ def test_panel_order_and_stitch_flags(tmp_path):
     s0, s1 = pattern.stitches
     assert (s0.a.panel, s0.a.edge, s0.b.panel, s0.b.edge) == ("p", 1, "q", 2)
     assert not s0.right_wrong and s1.right_wrong
-    assert s0.opposed is None and s1.opposed is None
+    assert s0.opposed is True and s1.opposed is False  # pygarment sews opposed unless right_wrong
 
 
 # ---------------------------------------------------------------------- the shared patterns

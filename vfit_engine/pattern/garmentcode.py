@@ -17,8 +17,10 @@ edge turned a quarter counter-clockwise, as long as the edge):
   negated when ``right``: GarmentCode's ``CircleEdgeFactory.from_points_radius``. The model keeps that midpoint.
 
 Stitches are lists of two ``{"panel", "edge"}`` sides, optionally followed by the string ``"right_wrong"``
-(GarmentCode's flag for a seam joining a right side to a wrong side); other extra strings are ignored. Neither
-format says which way the two edges run against each other, so ``Stitch.opposed`` is None: placement decides.
+(GarmentCode's flag for a seam joining a right side to a wrong side); other extra strings are ignored. The two
+edges of a stitch run against each other unless it is flagged ``right_wrong``: both formats wind every panel so
+that its outside faces out, and pygarment's mesher sews them so (``boxmeshgen``: ``swap = not right_wrong``);
+``Stitch.opposed`` says it, so nothing downstream needs to know the format.
 
 The frame (``Pattern.frame``), in this order:
 
@@ -303,7 +305,8 @@ def _stitch(index, spec, panels, path):
     if len(sides) != 2:
         raise where.error(f"the stitch has {len(sides)} sides, not 2", "give exactly two {panel, edge} sides")
     refs = [_side(side, panels, path, index) for side in sides]
-    return model.Stitch(a=refs[0], b=refs[1], opposed=None, right_wrong="right_wrong" in spec)
+    right_wrong = "right_wrong" in spec
+    return model.Stitch(a=refs[0], b=refs[1], opposed=not right_wrong, right_wrong=right_wrong)
 
 
 def _side(side, panels, path, index):

@@ -14,13 +14,16 @@ def is_pattern(path) -> bool:
     return Path(path).suffix.lower() in FORMATS
 
 
-def load(path, seams=None):
+def load(path, seams=None, gathers=False):
     """Read ``path`` (GarmentCode JSON, or DXF-AAMA with its ``seams`` sidecar) and validate it.
+
+    ``gathers``: accept seams that gather one edge onto a much shorter one (:func:`validate.validate`).
 
     Returns
     -------
     (model.Pattern, list[str])
-        The pattern in metres and the validation's warnings (seams that ease a notable length, ...).
+        The pattern in metres and the reader's and the validation's warnings (a DXF piece with no grain line,
+        seams that ease a notable length, ...).
 
     Raises
     ------
@@ -43,4 +46,4 @@ def load(path, seams=None):
     else:
         known = ", ".join(f"{k} ({v})" for k, v in FORMATS.items())
         raise InputError(f"{path}: not a pattern file; vfit reads {known}")
-    return pattern, validate.validate(pattern)
+    return pattern, list(pattern.warnings) + validate.validate(pattern, gathers=gathers)

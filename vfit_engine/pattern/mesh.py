@@ -277,19 +277,12 @@ def _edge_counts(pattern, spacing):
     return refs, comp, counts
 
 
-#: Frames whose files sew every stitch opposed unless it is flagged ``right_wrong``: GarmentCode's and GPG's
-#: panels face outwards by their outline's winding (pygarment's ``boxmeshgen``: ``swap = not right_wrong``).
-WINDING_FRAMES = ("garmentcode", "gpg")
-
-
 def _stitch_opposed(pattern, stitch, placed, winding):
-    """Whether edge ``b`` of the stitch runs against edge ``a``: ``Stitch.opposed`` when given; else the file's
-    convention for GarmentCode and GPG (``WINDING_FRAMES``); else, for panels placed in 3D, the pairing whose
-    ends are closer; else (no placement: pieces cut face up) opposed when the two outlines wind the same way."""
+    """Whether edge ``b`` of the stitch runs against edge ``a``: ``Stitch.opposed`` when the file says (GarmentCode
+    and GPG always do: their reader); else, for panels placed in 3D, the pairing whose ends are closer; else (no
+    placement: pieces cut face up) opposed when the two outlines wind the same way."""
     if stitch.opposed is not None:
         return bool(stitch.opposed)
-    if pattern.frame in WINDING_FRAMES:
-        return not stitch.right_wrong
     if placed:
         pa, pb = pattern.panels[stitch.a.panel], pattern.panels[stitch.b.panel]
         a0, a1 = pa.to_3d(np.stack(pa.edge_ends(stitch.a.edge)))
