@@ -81,6 +81,7 @@ class SolverPD:
         self._hot = np.zeros(n, dtype=np.bool_)
         self._dt = None
         self._factor = None
+        self._seams = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), 0.0)
 
     # -- set-up -------------------------------------------------------------------------
     def _set_contacts(self, body, spheres):
@@ -121,6 +122,20 @@ class SolverPD:
         self._con.open_bands(inside, strain)
         self._dt = None
 
+    def sew(self, pairs, length=0.0, weight=1.0):
+        """Pull the vertex pairs ``pairs`` (s, 2) of seams together: each pair an element of the matrix free
+        between lengths 0 and ``length`` (m; scalar or (s,)) and beyond with ``weight`` times the typical yarn's
+        stiffness. Called again, it replaces the seams (a sewing shortens ``length`` to 0 as it closes them);
+        the matrix is refactored at the next step."""
+        p = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+        hi = np.broadcast_to(np.asarray(length, dtype=np.float64), (p.shape[0],)).copy()
+        if p.size and (p.min() < 0 or p.max() >= self.model.particle_count or np.any(p[:, 0] == p[:, 1])):
+            raise ValueError("a seam pair refers to a vertex that does not exist, or joins a vertex to itself")
+        if np.any(hi < 0) or not (weight > 0):
+            raise ValueError("seam lengths must be >= 0 and the weight > 0")
+        self._seams = (p[:, 0].copy(), p[:, 1].copy(), hi, float(weight))
+        self._dt = None
+
     def admit(self, pos, vertices):
         """Widen the bands among ``vertices`` to admit their lengths at ``pos`` (as :meth:`SolverVerlet.admit`)."""
         inside = np.zeros(self.model.particle_count, dtype=bool)
@@ -151,6 +166,11 @@ class SolverPD:
         e_hi = np.concatenate([con.hi[in_a], m.spring_rest[bend_sp]]) if st.bend_in_matrix else con.hi[in_a]
         e_w = np.concatenate([1.0 / con.alpha[in_a], m.spring_k[bend_sp]]) if st.bend_in_matrix \
             else 1.0 / con.alpha[in_a]
+        seam_i, seam_j, seam_hi, seam_w = self._seams
+        if seam_i.size:  # the seams join the pair elements (sew)
+            e_i, e_j = np.concatenate([e_i, seam_i]), np.concatenate([e_j, seam_j])
+            e_lo, e_hi = np.concatenate([e_lo, np.zeros(seam_i.size)]), np.concatenate([e_hi, seam_hi])
+            e_w = np.concatenate([e_w, np.full(seam_i.size, seam_w * k_typ)])
         ang = np.flatnonzero(con.kind == KIND_ANGLE)
         a_w = np.full(ang.size, st.angle_weight * k_typ)
         if st.bend_in_matrix:
