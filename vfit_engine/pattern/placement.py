@@ -84,6 +84,10 @@ RING_PART = {"collar": "neck", "cuff": "arm", "waistband": "torso", "sleeve": "a
 SIDES = {"front": "front", "back": "back", "left": "left", "right": "right",
          "f": "front", "b": "back", "l": "left", "r": "right"}
 
+#: An arm's top is the highest arm vertex (along the arm's axis) within this distance (m) of the axis.
+ARM_TOP_RADIUS = 0.04
+#: Fraction of the arm's length, from its top, whose vertices give a sleeve's axis (the upper arm).
+UPPER_ARM = 0.45
 #: Fraction of the arm's length, from its top, where a cuff's bottom sits.
 CUFF_AT = 0.85
 #: A ring's radius is at least its panels' widths summed over 2 pi times this (a small gap between them).
@@ -200,16 +204,25 @@ class BodyParts:
         sign = np.where(np.einsum("ij,ij->i", p - q[pick], n) < 0, -1.0, 1.0)
         return sign * best, n
 
-    def push_out(self, points, clearance):
+    def push_out(self, points, clearance, rounds=4):
         """``points`` (p, 3) with those closer than ``clearance`` (or inside) moved out along the normal to
-        ``clearance``; and how many moved."""
+        ``clearance``; and how many moved.
+
+        A point pushed out of one limb can land in another (between the thighs, in the armpit): it is pushed
+        again from where it landed, up to ``rounds`` times.
+        """
         p = np.array(points, dtype=np.float64).reshape(-1, 3)
-        if not len(p):
-            return p, 0
-        d, n = self.signed_distance(p)
-        close = d < clearance
-        p[close] += (clearance - d[close])[:, None] * n[close]
-        return p, int(close.sum())
+        moved = np.zeros(len(p), dtype=bool)
+        todo = np.arange(len(p))
+        for _ in range(rounds):
+            if not len(todo):
+                break
+            d, n = self.signed_distance(p[todo])
+            close = d < clearance * (1.0 - 1e-6)
+            todo, d, n = todo[close], d[close], n[close]
+            p[todo] += (clearance - d)[:, None] * n
+            moved[todo] = True
+        return p, int(moved.sum())
 
 
 # ---------------------------------------------------------------------------------------- frame mapping
@@ -435,13 +448,17 @@ def _ring(body, part, kind, height, width_sum, clearance):
                                   "neck": ("torso", "head")}[part])
     else:
         verts = body.part_verts(part)
-        origin = verts.mean(0)
-        up = np.linalg.svd(verts - origin, full_matrices=False)[2][0]
-        up = up if up[1] > 0 else -up
+        origin, up = _principal_axis(verts)
+        if part.startswith("arm"):  # the upper arm's axis: the forearm bends forwards, the hand further
+            s = (verts - origin) @ up
+            origin, up = _principal_axis(verts[s >= s.max() - UPPER_ARM * np.ptp(s)])
         front = np.array([0.0, 0.0, 1.0]) - up[2] * up
         front /= np.linalg.norm(front)
         s_all = (verts - origin) @ up
-        top = float(s_all.max()) if part.startswith("arm") else (lv["waist"] - origin[1]) / up[1]
+        # an arm's top: where its axis leaves the shoulder (the skin the axis runs into), not the far end of
+        # the part's cut against the torso, which sits inside the chest's reach
+        near_axis = np.linalg.norm((verts - origin) - np.outer(s_all, up), axis=1) < ARM_TOP_RADIUS
+        top = float(s_all[near_axis].max()) if part.startswith("arm") else (lv["waist"] - origin[1]) / up[1]
         if kind == "cuff":
             top = top - CUFF_AT * (top - float(s_all.min())) + height
     s = (verts - origin) @ up
@@ -451,6 +468,13 @@ def _ring(body, part, kind, height, width_sum, clearance):
     r_body = float(np.linalg.norm(radial, axis=1).max())
     radius = max(r_body + clearance, RING_SLACK * width_sum / (2.0 * np.pi))
     return Ring(origin, up, front, float(top), radius)
+
+
+def _principal_axis(verts):
+    """Centroid and unit principal direction (pointing up) of points (k, 3)."""
+    origin = verts.mean(0)
+    up = np.linalg.svd(verts - origin, full_matrices=False)[2][0]
+    return origin, (up if up[1] > 0 else -up)
 
 
 class _Wrap:
