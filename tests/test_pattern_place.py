@@ -1,18 +1,20 @@
 """Placement of pattern panels on vfit's body: the frame mapping, the automatic arrangement, the keyword table."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from tests.conftest import SHARED
 from vfit_engine.body.segment import SIX_PARTS
 from vfit_engine.errors import InputError
 from vfit_engine.geometry import closest_point_barycentric
 from vfit_engine.pattern.model import Edge, EdgeRef, Panel, Pattern, Stitch
 from vfit_engine.pattern.placement import (
-    GARMENTCODE_MEAN_BODY, BodyParts, Slot, garmentcode_landmarks, place, resolve_slots, slot_from_text,
+    GARMENTCODE_MEAN_BODY, Slot, garmentcode_landmarks, place, resolve_slots, slot_from_text,
 )
+from vfit_engine.pattern.placement_body import BodyParts
 
-PATTERNS = SHARED / "assets" / "patterns"
+PATTERNS = Path(__file__).resolve().parents[2] / "shared" / "assets" / "patterns"
 CLEARANCE = 0.01
 
 
@@ -285,7 +287,39 @@ def test_shared_patterns_placed(female, name, method):
         assert pl.method[pname].startswith(method)
         d, _ = female.signed_distance(pl.to_body(pname, dense(panel)))
         assert d.min() > CLEARANCE / 2, (pname, d.min())
+    # stitched edges run as they do in the file's own frame (the wrapped panels turned the file's way up)
+    for st in pat.stitches:
+        (a0, a1), (b0, b1) = (pat.panels[r.panel].to_3d(pat.panels[r.panel].vertices[
+            [pat.panels[r.panel].edges[r.edge].start, pat.panels[r.panel].edges[r.edge].end]]) for r in (st.a, st.b))
+        in_file = np.linalg.norm(a0 - b1) + np.linalg.norm(a1 - b0) < np.linalg.norm(a0 - b0) + np.linalg.norm(a1 - b1)
+        assert pl.opposed(pat, st) == in_file, st
     if name == "gpg_tee.json":
         assert pl.method["lfsleeve"] == "wrapped: arm.L" and pl.method["front"] == "wrapped: torso"
     if name == "gpg_skirt_4_panels.json":
         assert set(pl.method.values()) == {"wrapped: hips"}
+
+
+@pytest.mark.parametrize("alike", [False, True])
+def test_sleeve_halves_meet_whichever_way_they_are_drawn(female, alike):
+    """Two sleeve halves sewn along both long edges: one turns over so that the seams meet beside the arm.
+
+    Drawn as mirror images (the usual: each seen from outside), the front's bottom edge meets the back's top
+    edge, running against it; drawn alike, bottom meets bottom running the same way (``opposed=False``).
+    """
+    # cut with the grain along the arm (x): with no cap sewn, the grain tells which way is up the arm
+    f, b = (rect(n, 0.4, 0.2, grain=np.array([1.0, 0.0])) for n in ("left_sleeve_f", "left_sleeve_b"))
+    # edges of a rect: 0 bottom, 1 right, 2 top, 3 left
+    pairs = [(0, 0), (2, 2)] if alike else [(0, 2), (2, 0)]
+    st = [Stitch(EdgeRef("left_sleeve_f", i), EdgeRef("left_sleeve_b", j), opposed=False if alike else None)
+          for i, j in pairs]
+    pat = pattern_of(f, b, stitches=st)
+    pl = place(pat, female)
+    turned = pl.maps["left_sleeve_f"].mirror != pl.maps["left_sleeve_b"].mirror
+    assert turned == (not alike)
+    ring = pl.maps["left_sleeve_f"].ring
+    over = np.cross(ring.up, ring.front)  # across the arm, from its front-back plane towards its top
+    for s in st:
+        a, c = (pl.raw(r.panel, pat.panels[r.panel].edge_points(r.edge, [0.5]))[0] for r in (s.a, s.b))
+        # the seam's two edges on the same side of the arm (both over it or both under it), not across it
+        assert np.sign((a - ring.origin) @ over) == np.sign((c - ring.origin) @ over) != 0, s
+        assert pl.opposed(pat, s) == (not alike)

@@ -50,13 +50,8 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import ConvexHull, cKDTree
 
-from vfit_engine.body.levels import body_levels
-from vfit_engine.body.model import N_BODY
-from vfit_engine.body.segment import SIX_PARTS, bone_positions, six_part_split
 from vfit_engine.errors import InputError
-from vfit_engine.geometry import closest_point_barycentric, vertex_normals
 
 #: The body GarmentCode's shared patterns were made for (``garmentcode_body_mean_all.yaml``, cm): the one used
 #: when a GarmentCode pattern names no body.
@@ -108,121 +103,6 @@ class Slot:
     def part(self):
         p = RING_PART[self.kind]
         return f"{p}.{self.limb}" if p in ("arm", "leg") else p
-
-
-# ---------------------------------------------------------------------------------------- the body
-@dataclass
-class BodyParts:
-    """vfit's body as placement reads it: its surface, its six parts and its landmark heights.
-
-    Attributes
-    ----------
-    surface : (13380, 3) float64, m
-    tris : (T, 3) int64
-    labels : (13380,) int64
-        Index into :data:`vfit_engine.body.segment.SIX_PARTS` of every vertex.
-    levels : dict
-        ``floor``, ``crotch``, ``waist``, ``armpit``, ``shoulder`` (the shoulder line: base of the neck),
-        ``top`` (m, heights) and ``center_x`` (m).
-    """
-
-    surface: np.ndarray
-    tris: np.ndarray
-    labels: np.ndarray
-    levels: dict
-    normals: np.ndarray = field(init=False, repr=False)
-
-    def __post_init__(self):
-        self.normals = vertex_normals(self.surface, self.tris, outward=True)
-        self._tree = cKDTree(self.surface)
-        # triangles round each vertex (CSR), for the closest point among those of the nearest vertices
-        order = np.argsort(self.tris.ravel(), kind="stable")
-        self._vert_tris = order // 3
-        self._vert_start = np.searchsorted(self.tris.ravel()[order], np.arange(len(self.surface) + 1))
-
-    @classmethod
-    def from_model(cls, model, verts):
-        """The body of ``verts`` ((19158, 3) or (13380, 3) m, hm08, A-pose) with ``model``'s topology and rig."""
-        verts = np.asarray(verts, dtype=np.float64)
-        surface = np.ascontiguousarray(verts[:N_BODY])
-        tris = model.body_tris
-        lv = body_levels(surface, tris)
-        if not all(np.isfinite(lv[k]) for k in ("armpit_y", "waist_y", "crotch_y")):
-            raise InputError("cannot find the body's armpit, waist and crotch levels (is the body in A-pose?)")
-        neck_base = bone_positions(model, verts)["neck01"][0]
-        levels = dict(floor=lv["y_min"], crotch=lv["crotch_y"], waist=lv["waist_y"], armpit=lv["armpit_y"],
-                      shoulder=float(neck_base[1]), top=lv["y_max"], center_x=lv["center_x"])
-        return cls(surface, tris, six_part_split(model, verts), levels)
-
-    def part_verts(self, *parts):
-        """Vertices (k, 3) m of the named :data:`SIX_PARTS`."""
-        keep = np.isin(self.labels, [SIX_PARTS.index(p) for p in parts])
-        return self.surface[keep]
-
-    def torso_slab(self, y, half=0.01):
-        """Torso vertices within ``half`` (m) of height ``y`` (widened until there are some)."""
-        torso = self.part_verts("torso")
-        for h in (half, 2 * half, 4 * half, 8 * half):
-            slab = torso[np.abs(torso[:, 1] - y) <= h]
-            if len(slab) >= 8:
-                return slab
-        return torso[np.argsort(np.abs(torso[:, 1] - y))[:8]]
-
-    def girth(self, y):
-        """Tape girth (m) of the torso at height ``y``: perimeter of the convex hull of its section, and the
-        hull's centre (x, z) m."""
-        xz = self.torso_slab(y)[:, [0, 2]]
-        hull = xz[ConvexHull(xz).vertices]
-        return float(np.linalg.norm(np.diff(np.vstack([hull, hull[:1]]), axis=0), axis=1).sum()), hull.mean(0)
-
-    def signed_distance(self, points, k=8):
-        """Signed distance (p,) m of ``points`` (p, 3) to the body surface (negative inside) and the outward
-        normal (p, 3) at the closest point.
-
-        The closest point is searched on the triangles round the ``k`` nearest vertices (exact for points
-        within a few centimetres, where it matters); the sign is that of the offset along the normal
-        interpolated at the closest point.
-        """
-        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        _, near = self._tree.query(p, k=k)
-        counts = self._vert_start[near + 1] - self._vert_start[near]
-        owner = np.repeat(np.arange(len(p)), counts.sum(1))
-        starts = np.repeat(self._vert_start[near].ravel(), counts.ravel())
-        offs = np.arange(counts.sum()) - np.repeat(np.cumsum(counts.ravel()) - counts.ravel(), counts.ravel())
-        tri = self.tris[self._vert_tris[starts + offs]]
-        v = self.surface
-        w = closest_point_barycentric(p[owner], v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]])
-        q = np.einsum("ij,ijk->ik", w, v[tri])
-        d = np.linalg.norm(p[owner] - q, axis=1)
-        best = np.full(len(p), np.inf)
-        np.minimum.at(best, owner, d)
-        pick = np.flatnonzero(d == best[owner])
-        first = np.unique(owner[pick], return_index=True)[1]
-        pick = pick[first]
-        n = np.einsum("ij,ijk->ik", w[pick], self.normals[tri[pick]])
-        n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
-        sign = np.where(np.einsum("ij,ij->i", p - q[pick], n) < 0, -1.0, 1.0)
-        return sign * best, n
-
-    def push_out(self, points, clearance, rounds=4):
-        """``points`` (p, 3) with those closer than ``clearance`` (or inside) moved out along the normal to
-        ``clearance``; and how many moved.
-
-        A point pushed out of one limb can land in another (between the thighs, in the armpit): it is pushed
-        again from where it landed, up to ``rounds`` times.
-        """
-        p = np.array(points, dtype=np.float64).reshape(-1, 3)
-        moved = np.zeros(len(p), dtype=bool)
-        todo = np.arange(len(p))
-        for _ in range(rounds):
-            if not len(todo):
-                break
-            d, n = self.signed_distance(p[todo])
-            close = d < clearance * (1.0 - 1e-6)
-            todo, d, n = todo[close], d[close], n[close]
-            p[todo] += (clearance - d)[:, None] * n
-            moved[todo] = True
-        return p, int(moved.sum())
 
 
 # ---------------------------------------------------------------------------------------- frame mapping
@@ -480,8 +360,11 @@ def _principal_axis(verts):
 class _Wrap:
     """The isometric wrap of one panel round its ring: panel frame (k, 2) -> vfit's frame (k, 3)."""
 
-    def __init__(self, panel, slot, up2, ring):
+    def __init__(self, panel, slot, up2, ring, mirror=False):
         self.rot = np.array([[up2[1], -up2[0]], [up2[0], up2[1]]])  # panel xy -> (x', y') with up2 -> +y'
+        if mirror:  # the panel seen from its other face: +x' runs the other way round
+            self.rot[0] *= -1.0
+        self.mirror = mirror
         box = panel.outline() @ self.rot.T
         x0, x1, self.y1 = box[:, 0].min(), box[:, 0].max(), box[:, 1].max()
         # a half panel starts at the centre line and runs to its side (+x' runs towards the body's left)
@@ -513,7 +396,41 @@ def _wraps(pattern, body, slots, clearance):
         wsum, hmax = rings.get(key, (0.0, 0.0))
         rings[key] = (wsum + w, max(hmax, h))
     built = {key: _ring(body, key[1], key[0], h, w, clearance) for key, (w, h) in rings.items()}
-    return {n: _Wrap(pattern.panels[n], slot, ups[n], built[(slot.kind, slot.part)]) for n, slot in slots.items()}
+
+    def wrap(n, mirror=False):
+        return _Wrap(pattern.panels[n], slots[n], ups[n], built[(slots[n].kind, slots[n].part)], mirror)
+
+    wraps = {n: wrap(n) for n in slots}
+    # which face a panel shows is a drawing convention (Garment-Pattern-Generator draws a back sleeve mirrored,
+    # a back bodice not): the panels turn over, best first, while that brings the stitched edges' ends
+    # nearer their partners' (one at a time, the one that gains most: turning the first that gains anything
+    # can end with a sleeve's two halves both wrong)
+    gap = _seam_gap(pattern, wraps)
+    for _ in range(2 * len(wraps)):
+        trials = {n: {**wraps, n: wrap(n, not wraps[n].mirror)} for n in wraps}
+        gaps = {n: _seam_gap(pattern, t) for n, t in trials.items()}
+        best = min(gaps, key=gaps.get) if gaps else None
+        if best is None or gaps[best] >= gap - 1e-6:
+            break
+        wraps, gap = trials[best], gaps[best]
+    return wraps
+
+
+def _seam_gap(pattern, wraps):
+    """Summed distance (m) between the ends of every stitched edge and its partner's ends.
+
+    Ends pair as the stitch says, or against each other when it does not say (both formats' convention: two
+    panels cut face up are seamed edge to edge with their outlines running opposite ways).
+    """
+    gap = 0.0
+    for st in pattern.stitches:
+        if st.a.panel not in wraps or st.b.panel not in wraps:
+            continue
+        a, b = (wraps[r.panel](pattern.panels[r.panel].edge_points(r.edge, [0.0, 1.0])) for r in (st.a, st.b))
+        if st.opposed is not False:
+            b = b[::-1]
+        gap += float(np.linalg.norm(a - b, axis=1).sum())
+    return gap
 
 
 # ---------------------------------------------------------------------------------------- placement
@@ -544,6 +461,21 @@ class Placement:
         if panel_name not in self.maps:
             raise InputError(f"no panel {panel_name!r} in the placed pattern")
         return self.maps[panel_name](np.asarray(xy, dtype=np.float64).reshape(-1, 2))
+
+    def opposed(self, pattern, stitch):
+        """Whether the two edges of ``stitch`` run against each other as placed (b's end at a's start).
+
+        For a stitch whose file does not say (``Stitch.opposed`` None): the pairing of their ends that puts
+        them closer together in 3D, before the push out of the body.
+        """
+        if stitch.opposed is not None:
+            return stitch.opposed
+        ends = []
+        for ref in (stitch.a, stitch.b):
+            e = pattern.panels[ref.panel].edges[ref.edge]
+            ends.append(self.raw(ref.panel, pattern.panels[ref.panel].vertices[[e.start, e.end]]))
+        (a0, a1), (b0, b1) = ends
+        return bool(np.linalg.norm(a0 - b1) + np.linalg.norm(a1 - b0) < np.linalg.norm(a0 - b0) + np.linalg.norm(a1 - b1))
 
     def to_body(self, panel_name, xy):
         """Panel-frame points (k, 2) m to vfit's frame (k, 3) m, at least ``clearance`` off the body."""
