@@ -41,6 +41,11 @@ else from keywords in the panel's name, then its label, then the pattern's file 
   left on front and back panels alike (GarmentCode's and Garment-Pattern-Generator's convention: a back panel
   is drawn as seen from the front), towards the back on the left side and the front on the right side.
 
+* Which face a panel shows (its +x round one way or the other) is a drawing convention, so each panel shows
+  the face that brings its stitched edges' ends nearest their partners' (:func:`_turned_faces`);
+  ``Placement.opposed`` then tells, for a stitch whose file does not say, whether its edges run against each
+  other as placed.
+
 Both ways end the same: a point closer to the body than ``clearance`` (or inside it) is pushed out along the
 body's normal at its closest point to ``clearance`` (``Placement.pushed`` counts them per panel).
 """
@@ -303,7 +308,6 @@ class Ring:
     front: np.ndarray
     top: float
     radius: float
-    bottom: float = -np.inf  # the part's lowest point along up (a cuff hangs from it)
 
     def side(self, side):
         """(d, t): the unit direction a panel is centred on and the one its +x runs along there."""
@@ -397,40 +401,47 @@ def _wraps(pattern, body, slots, clearance):
         rings[key] = (wsum + w, max(hmax, h))
     built = {key: _ring(body, key[1], key[0], h, w, clearance) for key, (w, h) in rings.items()}
 
-    def wrap(n, mirror=False):
-        return _Wrap(pattern.panels[n], slots[n], ups[n], built[(slots[n].kind, slots[n].part)], mirror)
-
-    wraps = {n: wrap(n) for n in slots}
-    # which face a panel shows is a drawing convention (Garment-Pattern-Generator draws a back sleeve mirrored,
-    # a back bodice not): the panels turn over, best first, while that brings the stitched edges' ends
-    # nearer their partners' (one at a time, the one that gains most: turning the first that gains anything
-    # can end with a sleeve's two halves both wrong)
-    gap = _seam_gap(pattern, wraps)
-    for _ in range(2 * len(wraps)):
-        trials = {n: {**wraps, n: wrap(n, not wraps[n].mirror)} for n in wraps}
-        gaps = {n: _seam_gap(pattern, t) for n, t in trials.items()}
-        best = min(gaps, key=gaps.get) if gaps else None
-        if best is None or gaps[best] >= gap - 1e-6:
-            break
-        wraps, gap = trials[best], gaps[best]
-    return wraps
+    faces = {n: [_Wrap(pattern.panels[n], slot, ups[n], built[(slot.kind, slot.part)], m) for m in (False, True)]
+             for n, slot in slots.items()}
+    return {n: faces[n][int(m)] for n, m in _turned_faces(pattern, faces).items()}
 
 
-def _seam_gap(pattern, wraps):
-    """Summed distance (m) between the ends of every stitched edge and its partner's ends.
+def _turned_faces(pattern, faces):
+    """{panel: mirrored?}: which face each wrapped panel shows.
 
-    Ends pair as the stitch says, or against each other when it does not say (both formats' convention: two
-    panels cut face up are seamed edge to edge with their outlines running opposite ways).
+    Which face a panel shows is a drawing convention (Garment-Pattern-Generator draws a back sleeve mirrored, a
+    back bodice not), so the panels turn over, one at a time and the one that gains most first, while that
+    brings the ends of stitched edges nearer their partners' ends (turning the first panel that gains anything
+    can leave both halves of a sleeve wrong). Ends pair as a stitch says, or against each other when it does
+    not say (both formats' convention: panels cut face up are seamed with their outlines running opposite ways).
     """
-    gap = 0.0
+    ends = {}
+    touching = {n: [] for n in faces}
     for st in pattern.stitches:
-        if st.a.panel not in wraps or st.b.panel not in wraps:
+        if st.a.panel not in faces or st.b.panel not in faces:
             continue
-        a, b = (wraps[r.panel](pattern.panels[r.panel].edge_points(r.edge, [0.0, 1.0])) for r in (st.a, st.b))
-        if st.opposed is not False:
-            b = b[::-1]
-        gap += float(np.linalg.norm(a - b, axis=1).sum())
-    return gap
+        for r in (st.a, st.b):
+            e = pattern.panels[r.panel].edges[r.edge]
+            ends[r] = pattern.panels[r.panel].vertices[[e.start, e.end]]
+        touching[st.a.panel].append(st)
+        if st.b.panel != st.a.panel:
+            touching[st.b.panel].append(st)
+    mirror = {n: False for n in faces}
+
+    def gap(n, state):
+        total = 0.0
+        for st in touching[n]:
+            a, b = (faces[r.panel][int(state[r.panel])](ends[r]) for r in (st.a, st.b))
+            total += float(np.linalg.norm(a - (b if st.opposed is False else b[::-1]), axis=1).sum())
+        return total
+
+    for _ in range(2 * len(faces)):
+        gains = {n: gap(n, mirror) - gap(n, {**mirror, n: not mirror[n]}) for n in faces if touching[n]}
+        best = max(gains, key=gains.get) if gains else None
+        if best is None or gains[best] <= 1e-6:
+            break
+        mirror[best] = not mirror[best]
+    return mirror
 
 
 # ---------------------------------------------------------------------------------------- placement
@@ -475,7 +486,8 @@ class Placement:
             e = pattern.panels[ref.panel].edges[ref.edge]
             ends.append(self.raw(ref.panel, pattern.panels[ref.panel].vertices[[e.start, e.end]]))
         (a0, a1), (b0, b1) = ends
-        return bool(np.linalg.norm(a0 - b1) + np.linalg.norm(a1 - b0) < np.linalg.norm(a0 - b0) + np.linalg.norm(a1 - b1))
+        crossed = np.linalg.norm(a0 - b1) + np.linalg.norm(a1 - b0)
+        return bool(crossed < np.linalg.norm(a0 - b0) + np.linalg.norm(a1 - b1))
 
     def to_body(self, panel_name, xy):
         """Panel-frame points (k, 2) m to vfit's frame (k, 3) m, at least ``clearance`` off the body."""
