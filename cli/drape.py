@@ -103,6 +103,13 @@ def body_targets(body_path, girths, height, weight):
               help="Fit map that colours the preview, the GIF and scene.glb: yarn strain (%), ease (mm from the "
                    "skin) or contact pressure (kPa).")
 @click.option("--gif", is_flag=True, help="Also write OUTDIR/drape.gif: the drape frame by frame, from the front.")
+@click.option("--seams", default=None, type=click.Path(dir_okay=False),
+              help="A DXF-AAMA pattern's seams (JSON sidecar: docs/pattern-formats.md); AAMA carries none.")
+@click.option("--spacing", type=click.FloatRange(3, 100), default=None,
+              help="A pattern's cloth: edge length in mm (smaller: finer folds, slower) [default: 20].")
+@click.option("--arrange", type=click.Choice(["auto", "frame", "wrap"]), default="auto", show_default=True,
+              help="How a pattern's panels start round the body: frame = where its file places them (GarmentCode), "
+                   "wrap = each wrapped round its body part (named by the panel), auto = frame when it can.")
 @click.option("-o", "--output", "outdir", default="drape_out", show_default=True,
               type=click.Path(file_okay=False), help="Output directory (created if missing).")
 @click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),
@@ -111,8 +118,15 @@ def body_targets(body_path, girths, height, weight):
 @click.pass_context
 @handle_errors
 def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, units, frames, refine, ground, every,
-          fmt, preview, map_name, gif, outdir, json_path, quiet, gender, height, weight, definition, **girths):
-    """Drape GARMENT (.obj/.ply) on a body and write the result to OUTDIR.
+          fmt, preview, map_name, gif, seams, spacing, arrange, outdir, json_path, quiet, gender, height, weight,
+          definition, **girths):
+    """Drape GARMENT (.obj/.ply, or a sewing pattern: GarmentCode .json, DXF-AAMA .dxf with --seams) on a body
+    and write the result to OUTDIR.
+
+    A pattern's panels are meshed, placed round the body and sewn there, then
+    the garment drapes as any garment does; its strain is against the flat
+    pattern, and final.obj carries the panels' coordinates as UVs (m) and a
+    group per panel.
 
     The garment keeps its own size: on a bigger body it is stretched, on a
     smaller one it hangs loose, and the report says where and by how much
@@ -143,9 +157,12 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
     check_outdir(outdir)
     if json_path:
         check_output_path(json_path, (".json",), outdir=outdir)
-    check_outputs(outdir, OUTPUT_GLOBS, user_files(garment, body_path, pin, material), extra_outputs=[json_path])
+    check_outputs(outdir, OUTPUT_GLOBS, {**user_files(garment, body_path, pin, material), "--seams": seams},
+                  extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
+    pattern_only(ctx, garment, seams=seams, spacing=spacing, arrange=arrange)
     opts = SimpleNamespace(garment=garment, body_path=body_path, material=material, rest=rest, transfer=transfer,
+                           seams=seams, spacing=spacing, arrange=arrange,
                            collider=collider, pin=pin, units=units, frames=frames, refine=refine, ground=ground,
                            every=every, fmt=fmt,
                            preview=preview, map_name=map_name, gif=gif, outdir=outdir, json_path=json_path, quiet=quiet,
@@ -163,6 +180,27 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
             click.echo(f"Error: interrupted by {name} before the drape started; nothing written", err=True)
     if code:
         ctx.exit(code)
+
+
+#: options that only a garment mesh takes, and their defaults: a pattern is sewn, not placed, moved or pinned
+MESH_ONLY = dict(rest="garment", transfer="auto", collider="mesh", pin="auto", units="auto", refine=0)
+
+
+def pattern_only(ctx, garment, **given):
+    """Refuse the options that do not go with GARMENT's kind (mesh or pattern), naming them."""
+    from vfit_engine.errors import InputError
+    from vfit_engine.pattern.load import is_pattern
+
+    source = lambda name: ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
+    if is_pattern(garment):
+        bad = [n for n in MESH_ONLY if source(n) and ctx.params[n] != MESH_ONLY[n]]
+        if bad:
+            raise InputError(f"{garment}: --{bad[0]} is for a garment mesh; a pattern is sewn round the body "
+                             "(its seams hold it) and keeps the flat pattern's size")
+    else:
+        bad = [n for n in given if source(n)]
+        if bad:
+            raise InputError(f"{garment}: --{bad[0]} is for a sewing pattern (.json, .dxf), not a garment mesh")
 
 
 def user_files(garment, body_path=None, pin=None, material=None):
@@ -207,9 +245,12 @@ def _drape(o):
     from vfit_engine.errors import InputError
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.pins import read_pin_file
+    from vfit_engine.pattern.load import is_pattern
 
     progress = o.progress
     progress.stage(f"reading {os.path.basename(o.garment)}")
+    if is_pattern(o.garment):
+        return _drape_pattern(o)
     g = load_garment(o.garment, units=o.units)
     sizes = g.mesh.face_sizes()
     if o.fmt == "ply" and sizes.size and sizes.max() > 255:  # found now, not when the first frame is written
@@ -231,10 +272,49 @@ def _drape(o):
                           collider=o.collider, settings=settings)
     for w in setup.pins.info.get("warnings", []):
         click.echo(f"Warning: {o.garment}: {w}", err=True)
-    clear_outputs(o.outdir, OUTPUT_GLOBS)
-    o.cleared = True
     context = dict(garment=o.garment, garment_units=g.units, garment_vertices=g.mesh.n_verts,
                    garment_gender=tag_gender, warnings=list(g.warnings), body=body.description)
+    return _run(setup, settings, model, o, g, context)
+
+
+def _drape_pattern(o):
+    """``_drape`` of a sewing pattern: read and checked, its panels meshed, placed and sewn on the body."""
+    from vfit_engine.body.model import BodyModel
+    from vfit_engine.body.resolve import resolve_body
+    from vfit_engine.drape import DrapeSettings
+    from vfit_engine.drape.settings import projective
+    from vfit_engine.drape.sew import prepare_pattern_drape
+    from vfit_engine.pattern.load import load
+    from vfit_engine.pattern.mesh import DEFAULT_SPACING
+
+    pat, warnings = load(o.garment, o.seams)
+    for w in warnings:
+        click.echo(f"Warning: {o.garment}: {w}", err=True)
+    model = BodyModel.load()
+    o.progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
+                     f"reading the body {o.body_path}" if o.body_path else "loading the default body")
+    body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or "female", o.definition)
+    # sewing closes the seams with the projective solver (drape.sew)
+    settings = projective(DrapeSettings(ground=o.ground, **({} if o.frames is None else dict(max_frames=o.frames))))
+    o.progress.stage("meshing the panels, placing them round the body, building the body's collision grid")
+    spacing = DEFAULT_SPACING if o.spacing is None else o.spacing / 1000.0
+    setup = prepare_pattern_drape(pat, body, model, material=o.material, spacing=spacing, arrange=o.arrange,
+                                  settings=settings)
+    g = setup.garment
+    context = dict(garment=o.garment, garment_units="m", garment_vertices=g.mesh.n_verts, garment_gender=None,
+                   warnings=list(warnings), body=body.description, pattern=setup.info["pattern"])
+    return _run(setup, settings, model, o, g, context)
+
+
+def _run(setup, settings, model, o, g, context):
+    """Drape a set-up, write its outputs and say how it went; returns the exit code."""
+    import os
+    import time
+
+    from vfit_engine.errors import InputError
+
+    clear_outputs(o.outdir, OUTPUT_GLOBS)
+    o.cleared = True
     result, written = _simulate(setup, settings, o, context)
     if isinstance(result, int):  # interrupted: its exit code
         return result
@@ -427,7 +507,8 @@ def _summary(g, setup, result, report):
                f"{'settled' if result.converged else 'NOT settled'}")
     click.echo(f"  cloth surface inside the body: {m['surface_inside_percent']:.2f} % of "
                f"{m['surface_samples']} samples, deepest {m['surface_max_depth_mm']:.2f} mm")
-    click.echo(f"  yarn strain against the garment as given: p99 {100 * m['p99_strain']:.2f} %, "
+    against = "the flat pattern" if setup.info["rest"] == "pattern" else "the garment as given"
+    click.echo(f"  yarn strain against {against}: p99 {100 * m['p99_strain']:.2f} %, "
                f"max {100 * m['max_strain']:.2f} %; shear p99 {m['shear_p99_deg']:.1f} deg, "
                f"max {m['shear_max_deg']:.1f} deg" + ("  (graded to this body: --rest graded)"
                                                       if setup.info["rest"] == "graded" else ""))

@@ -116,6 +116,8 @@ def build_solver(setup, settings, garment=None):
                   spheres=setup.spheres, points=points, colliders=() if setup.project is None else [setup.project],
                   ground=setup.ground)
     solver.sweep_from(setup.pins.indices)
+    if setup.seams.size:
+        solver.sew(setup.seams)
     for zone, strain in setup.zones:
         # the cloth round an opening the body forces wider may stretch that far, and it starts there
         solver.allow_stretch(zone, strain)
@@ -224,7 +226,15 @@ def run_drape(setup, settings=None, on_frame=None):
     t0 = time.perf_counter()
     ramp = max(int(st.ramp_frames), 1)
     converged, frame = False, 0
+    sew = int(st.sew_frames) if setup.seams.size else 0
+    if sew:
+        solver.weigh(0.0)
+        gap0 = np.linalg.norm(start[setup.seams[:, 0]] - start[setup.seams[:, 1]], axis=1)
     for frame in range(1, int(st.max_frames) + 1):
+        if sew and frame <= sew:
+            solver.close_seams(gap0 * max(1.0 - frame / (0.75 * sew), 0.0))
+        if sew and frame == sew + 1:
+            solver.weigh(1.0)
         if frame == st.slow_frames + 1 and st.slow_iterations > solver.settings.iterations:
             solver.set_iterations(st.slow_iterations)  # still moving: DrapeSettings.slow_frames says why
         alpha = min(frame / ramp, 1.0)
@@ -244,7 +254,7 @@ def run_drape(setup, settings=None, on_frame=None):
             raise DrapeDiverged(f"simulation diverged at frame {frame} ({what}); last good frame {frame - 1}",
                                 frame=frame, last_good=last_good[:n].copy(), last_good_frame=frame - 1)
         np.copyto(last_good, state.pos)
-        settled = settle.frame(state.pos, frame >= ramp)
+        settled = settle.frame(state.pos, frame >= max(ramp, sew + 1))
         if on_frame is not None:
             on_frame(frame, state.pos[:n], settle.share)
         if settled:

@@ -98,6 +98,7 @@ class DrapeSettings:
     push_start: float = 0.0002
     push_end: float = 0.005
     ramp_frames: int = 40
+    sew_frames: int = 40
     settle_frames: int = 10
     settle_step: float = 0.0001
     settle_share: float = 0.005

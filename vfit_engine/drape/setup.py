@@ -126,6 +126,7 @@ class DrapeSetup:
     info: dict = field(default_factory=dict)
     body_parts: np.ndarray | None = None
     ground: float | None = None
+    seams: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
 
     @property
     def rest_mesh(self):

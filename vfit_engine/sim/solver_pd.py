@@ -136,6 +136,20 @@ class SolverPD:
         self._seams = (p[:, 0].copy(), p[:, 1].copy(), hi, float(weight))
         self._dt = None
 
+    def close_seams(self, length):
+        """Let the seams be at most ``length`` (m; scalar or (s,)) long from the next step on, without a refactor:
+        the band re-weighing (``PDSettings.band_weight``) follows which seams are at their length."""
+        hi = self._seams[2]
+        hi[:] = np.broadcast_to(np.asarray(length, dtype=np.float64), hi.shape)
+        if self._dt is not None and hi.size:
+            at = self._seam_at
+            self._arrays[6][at:at + hi.size] = hi
+            self._pairs["hi"][at:at + hi.size] = hi
+
+    def weigh(self, gravity=1.0):
+        """Scale gravity by ``gravity`` from the next step on (0 while a sewing closes the seams)."""
+        self._gravity = np.ascontiguousarray(np.asarray(self.settings.gravity, dtype=np.float64) * float(gravity))
+
     def admit(self, pos, vertices):
         """Widen the bands among ``vertices`` to admit their lengths at ``pos`` (as :meth:`SolverVerlet.admit`)."""
         inside = np.zeros(self.model.particle_count, dtype=bool)
@@ -167,6 +181,7 @@ class SolverPD:
         e_w = np.concatenate([1.0 / con.alpha[in_a], m.spring_k[bend_sp]]) if st.bend_in_matrix \
             else 1.0 / con.alpha[in_a]
         seam_i, seam_j, seam_hi, seam_w = self._seams
+        self._seam_at = e_i.size
         if seam_i.size:  # the seams join the pair elements (sew)
             e_i, e_j = np.concatenate([e_i, seam_i]), np.concatenate([e_j, seam_j])
             e_lo, e_hi = np.concatenate([e_lo, np.zeros(seam_i.size)]), np.concatenate([e_hi, seam_hi])
