@@ -63,6 +63,31 @@ def test_signed_distance_matches_brute_force(female):
     assert 0.035 < female.signed_distance(front[None])[0][0] <= 0.05 + 1e-12
 
 
+def test_girth_and_waist_of_a_tube():
+    """A tube of 64-gon sections, narrowest (r = 0.1 m) from y = 0.4 to 0.6: its tape girth is the 64-gon's
+    perimeter 2 n r sin(pi / n), and the waist the middle of the narrow stretch."""
+    n, ys = 64, np.linspace(0.0, 1.0, 101)
+    r = 0.1 + 0.5 * np.maximum(0.0, np.abs(ys - 0.5) - 0.1)
+    ang = 2 * np.pi * np.arange(n) / n
+    verts = np.concatenate([np.column_stack([ri * np.sin(ang), np.full(n, y), ri * np.cos(ang)])
+                            for y, ri in zip(ys, r)])
+    j = np.arange(n)
+    quads = np.concatenate([np.column_stack([k * n + j, k * n + (j + 1) % n, (k + 1) * n + (j + 1) % n,
+                                             (k + 1) * n + j]) for k in range(len(ys) - 1)])
+    tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    tube = BodyParts(verts, tris, np.full(len(verts), SIX_PARTS.index("torso")), {})
+    for y in (0.45, 0.503, 0.3):
+        ri = 0.1 + 0.5 * max(0.0, abs(y - 0.5) - 0.1)
+        g, centre = tube.girth(y)
+        if abs(y - 0.5) <= 0.1:  # between two rings of one radius the section is the 64-gon itself
+            assert g == pytest.approx(2 * n * ri * np.sin(np.pi / n), rel=1e-12)
+        else:  # rings of different radii: the section's hull lies between the two rings' 64-gons
+            assert 2 * n * (ri - 0.005) * np.sin(np.pi / n) < g < 2 * n * (ri + 0.005) * np.sin(np.pi / n)
+        np.testing.assert_allclose(centre, 0.0, atol=1e-12)
+    assert tube.narrowest(0.2, 0.9, step=0.01, tol=1e-9) == pytest.approx(0.5, abs=1e-9)
+    assert tube.narrowest(0.45, 0.9, step=0.01, tol=1e-9) == pytest.approx(0.525, abs=1e-9)
+
+
 # ---------------------------------------------------------------------------------------- frame mapping
 def test_frame_mapping_by_hand(female):
     """A panel turned a quarter about z and moved: its points land where the landmarks and girths say."""
