@@ -45,6 +45,7 @@ class BodyParts:
     def __post_init__(self):
         self.normals = vertex_normals(self.surface, self.tris, outward=True)
         self._tree = cKDTree(self.surface)
+        self._torso_tris = self.tris[(self.labels[self.tris] == SIX_PARTS.index("torso")).all(1)]
         # triangles round each vertex (CSR), for the closest point among those of the nearest vertices
         order = np.argsort(self.tris.ravel(), kind="stable")
         self._vert_tris = order // 3
@@ -90,8 +91,7 @@ class BodyParts:
         The torso's triangles (all three corners on the torso) and its vertices within 1 cm when the plane
         misses them (above the shoulders, below the crotch).
         """
-        torso = SIX_PARTS.index("torso")
-        tri = self.tris[(self.labels[self.tris] == torso).all(1)]
+        tri = self._torso_tris
         pts = []
         for i, j in ((0, 1), (1, 2), (2, 0)):
             a, b = self.surface[tri[:, i]], self.surface[tri[:, j]]
