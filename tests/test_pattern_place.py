@@ -9,9 +9,8 @@ from vfit_engine.body.segment import SIX_PARTS
 from vfit_engine.errors import InputError
 from vfit_engine.geometry import closest_point_barycentric
 from vfit_engine.pattern.model import Edge, EdgeRef, Panel, Pattern, Stitch
-from vfit_engine.pattern.placement import (
-    GARMENTCODE_MEAN_BODY, Slot, garmentcode_landmarks, place, resolve_slots, slot_from_text,
-)
+from vfit_engine.pattern.panel_slots import Slot, resolve_slots, slot_from_text
+from vfit_engine.pattern.placement import GARMENTCODE_MEAN_BODY, garmentcode_landmarks, place
 from vfit_engine.pattern.placement_body import BodyParts
 
 PATTERNS = Path(__file__).resolve().parents[2] / "shared" / "assets" / "patterns"
@@ -263,6 +262,9 @@ def test_ring_panels_do_not_overlap(wrapped):
     ("SleeveLeftBack", Slot("sleeve", "back", None, "L")),
     ("waistband", Slot("waistband", "front")),
     ("Collar", Slot("collar", "front")),
+    ("right_sleeve_cuff_b", Slot("cuff", "back", None, "R")),
+    ("pant_f_l", Slot("leg", "front", None, "L")),
+    ("wb_back", Slot("waistband", "back")),
 ])
 def test_keyword_table(text, slot):
     assert slot_from_text(text) == slot
