@@ -24,8 +24,8 @@ Automatic arrangement (``"wrapped: <part>"``), for any other frame (Garment-Patt
 with no placement) or when asked: each panel is bent isometrically round a cylinder round the body part it
 belongs to, as CLO's arrangement points on bounding cylinders. The part comes from ``mapping`` {panel: slot},
 else from keywords in the panel's name, then its label, then the pattern's file name (the keyword table of
-:mod:`vfit_engine.pattern.panel_slots`; e.g. ``left_ftorso`` = torso, front, left half; ``rbsleeve`` = right sleeve, back; ``skirt_back``;
-``lfsleeve``); a panel with no keyword that is sewn to a sleeve is a torso panel.
+:mod:`vfit_engine.pattern.panel_slots`; e.g. ``left_ftorso`` = torso, front, left half; ``rbsleeve`` = right
+sleeve, back; ``skirt_back``); a panel with no keyword that is sewn to a sleeve is a torso panel.
 
 * A ring is the panels of one kind round one part. Its axis: the torso's vertical axis (torso, skirt,
   waistband, collar) or the principal axis of the arm or leg. Its radius: the part's largest distance from
@@ -275,9 +275,9 @@ def _turned_faces(pattern, faces):
     """{panel: mirrored?}: which face each wrapped panel shows.
 
     Which face a panel shows is a drawing convention (Garment-Pattern-Generator draws a back sleeve mirrored, a
-    back bodice not), so the panels turn over, one at a time and the one that gains most first, while that
-    brings the ends of stitched edges nearer their partners' ends (turning the first panel that gains anything
-    can leave both halves of a sleeve wrong). Ends pair as a stitch says, or against each other when it does
+    back bodice not), so the panels turn over, a panel or two sewn panels at a time and the move that gains
+    most first, while that brings the ends of stitched edges nearer their partners' ends (turning the first
+    panel that gains anything can leave both halves of a sleeve wrong). Ends pair as a stitch says, or against each other when it does
     not say (both formats' convention: panels cut face up are seamed with their outlines running opposite ways).
     """
     ends = {}
@@ -293,19 +293,23 @@ def _turned_faces(pattern, faces):
             touching[st.b.panel].append(st)
     mirror = {n: False for n in faces}
 
-    def gap(n, state):
+    def gap(move, state):
         total = 0.0
-        for st in touching[n]:
+        for st in {id(st): st for n in move for st in touching[n]}.values():
             a, b = (faces[r.panel][int(state[r.panel])](ends[r]) for r in (st.a, st.b))
             total += float(np.linalg.norm(a - (b if st.opposed is False else b[::-1]), axis=1).sum())
         return total
 
+    # a move turns one panel, or two sewn together (two sleeve halves may each lose turning alone)
+    moves = {(n,) for n in faces if touching[n]}
+    moves |= {tuple(sorted((st.a.panel, st.b.panel)))
+              for n in faces for st in touching[n] if st.a.panel != st.b.panel}
     for _ in range(2 * len(faces)):
-        gains = {n: gap(n, mirror) - gap(n, {**mirror, n: not mirror[n]}) for n in faces if touching[n]}
-        best = max(gains, key=gains.get) if gains else None
+        gains = {m: gap(m, mirror) - gap(m, {**mirror, **{n: not mirror[n] for n in m}}) for m in moves}
+        best = max(sorted(gains), key=gains.get) if gains else None
         if best is None or gains[best] <= 1e-6:
             break
-        mirror[best] = not mirror[best]
+        mirror.update({n: not mirror[n] for n in best})
     return mirror
 
 
