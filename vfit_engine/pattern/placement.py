@@ -277,8 +277,9 @@ def _turned_faces(pattern, faces):
     Which face a panel shows is a drawing convention (Garment-Pattern-Generator draws a back sleeve mirrored, a
     back bodice not), so the panels turn over, a panel or two sewn panels at a time and the move that gains
     most first, while that brings the ends of stitched edges nearer their partners' ends (turning the first
-    panel that gains anything can leave both halves of a sleeve wrong). Ends pair as a stitch says, or against each other when it does
-    not say (both formats' convention: panels cut face up are seamed with their outlines running opposite ways).
+    panel that gains anything can leave both halves of a sleeve wrong). Ends pair as a stitch says, or against
+    each other when it does not say (both formats' convention: panels cut face up are seamed with their
+    outlines running opposite ways).
     """
     ends = {}
     touching = {n: [] for n in faces}
