@@ -34,8 +34,8 @@ sleeve, back; ``skirt_back``); a panel with no keyword that is sewn to a sleeve 
 * A panel's "up" is its +y (tailors draw with the grain vertical), except a sleeve's: towards its edges sewn
   to a non-sleeve panel (the cap), else its grain line. Up runs along the axis towards the part's top.
 * Its top sits at the part's top landmark: the shoulder line (torso, sleeves: the top of the arm), the waist
-  (skirts, trousers, the waistband's middle), the shoulder line for a collar's bottom, 85 % down the arm for
-  a cuff's bottom.
+  (skirts, trousers, the waistband's middle), the shoulder line for a collar's bottom, the wrist for a cuff's
+  bottom (round the forearm).
 * Round the axis, a front panel is centred on the front, a back on the back, a side panel on its side; a
   left or right half starts at the centre line and runs to its side. The panel's +x runs towards the body's
   left on front and back panels alike (GarmentCode's and Garment-Pattern-Generator's convention: a back panel
@@ -71,8 +71,10 @@ MAPPED_FRAMES = ("garmentcode",)
 ARM_TOP_RADIUS = 0.04
 #: Fraction of the arm's length, from its top, whose vertices give a sleeve's axis (the upper arm).
 UPPER_ARM = 0.45
-#: Fraction of the arm's length, from its top, where a cuff's bottom sits.
-CUFF_AT = 0.85
+#: Fraction of the leg's length, from the sole, left out of its ring (the foot sticks out forwards).
+FOOT = 0.1
+#: Fraction of the arm's length (hand included), from its top, where the wrist is: a cuff's bottom.
+WRIST_AT = 0.72
 #: A ring's radius is at least its panels' widths summed over 2 pi times this (a small gap between them).
 RING_SLACK = 1.05
 
@@ -197,19 +199,9 @@ def _ring(body, part, kind, height, width_sum, clearance):
                                   "neck": ("torso", "head")}[part])
     else:
         verts = body.part_verts(part)
-        origin, up = _principal_axis(verts)
-        if part.startswith("arm"):  # the upper arm's axis: the forearm bends forwards, the hand further
-            s = (verts - origin) @ up
-            origin, up = _principal_axis(verts[s >= s.max() - UPPER_ARM * np.ptp(s)])
+        verts, origin, up, top = _limb_axis(verts, part, kind, height, lv["waist"])
         front = np.array([0.0, 0.0, 1.0]) - up[2] * up
         front /= np.linalg.norm(front)
-        s_all = (verts - origin) @ up
-        # an arm's top: where its axis leaves the shoulder (the skin the axis runs into), not the far end of
-        # the part's cut against the torso, which sits inside the chest's reach
-        near_axis = np.linalg.norm((verts - origin) - np.outer(s_all, up), axis=1) < ARM_TOP_RADIUS
-        top = float(s_all[near_axis].max()) if part.startswith("arm") else (lv["waist"] - origin[1]) / up[1]
-        if kind == "cuff":
-            top = top - CUFF_AT * (top - float(s_all.min())) + height
     s = (verts - origin) @ up
     span = verts[(s >= top - height) & (s <= top)]
     span = span if len(span) else verts
@@ -217,6 +209,33 @@ def _ring(body, part, kind, height, width_sum, clearance):
     r_body = float(np.linalg.norm(radial, axis=1).max())
     radius = max(r_body + clearance, RING_SLACK * width_sum / (2.0 * np.pi))
     return Ring(origin, up, front, float(top), radius)
+
+
+def _limb_axis(verts, part, kind, height, waist):
+    """The vertices (k, 3) that size a limb's ring, its axis (origin, unit up) and its top's position on it (m).
+
+    A sleeve's axis is the upper arm's (the forearm bends forwards, the hand further), its top where the
+    axis leaves the shoulder (the skin the axis runs into, not the far end of the part's cut against the
+    torso, inside the chest's reach); a cuff's is the forearm's, its bottom at the wrist; a leg's is the
+    leg's without the foot, its top at the waist.
+    """
+    origin, up = _principal_axis(verts)
+    if not part.startswith("arm"):  # the leg without its foot, which sticks out forwards
+        s = (verts - origin) @ up
+        verts = verts[s >= s.min() + FOOT * np.ptp(s)]
+        origin, up = _principal_axis(verts)
+        return verts, origin, up, (waist - origin[1]) / up[1]
+    s = (verts - origin) @ up
+    length = np.ptp(s)
+    if kind == "cuff":
+        wrist = s.max() - WRIST_AT * length
+        origin, up = _principal_axis(verts[(s <= s.max() - UPPER_ARM * length) & (s >= wrist)])
+        at_wrist = verts[np.abs(s - wrist) < 0.01]
+        return verts, origin, up, float((at_wrist.mean(0) - origin) @ up) + height
+    origin, up = _principal_axis(verts[s >= s.max() - UPPER_ARM * length])
+    s = (verts - origin) @ up
+    near_axis = np.linalg.norm((verts - origin) - np.outer(s, up), axis=1) < ARM_TOP_RADIUS
+    return verts, origin, up, float(s[near_axis].max())
 
 
 def _principal_axis(verts):
