@@ -209,6 +209,16 @@ def test_wrapped_panels_on_their_side(wrapped, female):
         other = arm_r if arm is arm_l else arm_l
         assert np.linalg.norm(c - arm) < np.linalg.norm(c - other) - 0.3, name
     assert centre("left_sleeve_f")[2] > centre("left_sleeve_b")[2]
+    # trousers round their leg, in front or behind it; a cuff round the left wrist; a collar round the neck
+    leg_l, leg_r = (female.part_verts(p).mean(0) for p in ("leg.L", "leg.R"))
+    assert centre("pants_left_front")[0] > 0 and centre("pants_left_front")[2] > leg_l[2]
+    assert centre("pants_right_back")[0] < 0 and centre("pants_right_back")[2] < leg_r[2]
+    tree = cKDTree(female.surface)
+    cuff = centre("cuff_left")
+    assert SIX_PARTS[female.labels[tree.query(cuff)[1]]] == "arm.L"
+    assert cuff[1] < female.levels["armpit"] - 0.15 and cuff[0] > 0.3
+    collar = centre("collar")
+    assert abs(collar[0]) < 0.01 and female.levels["shoulder"] < collar[1] < female.levels["shoulder"] + 0.05
     # tops at their landmarks: the torso at the shoulder line, the skirt at the waist
     lv = female.levels
     assert pl.raw("left_ftorso", [[0.1, 0.6]])[0, 1] == pytest.approx(lv["shoulder"])
