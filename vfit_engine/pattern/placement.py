@@ -57,6 +57,7 @@ import numpy as np
 
 from vfit_engine.errors import InputError
 from vfit_engine.pattern.panel_slots import resolve_slots, slot_kind
+from vfit_engine.pattern.placement_body import BodyParts
 
 #: The body GarmentCode's shared patterns were made for (``garmentcode_body_mean_all.yaml``, cm): the one used
 #: when a GarmentCode pattern names no body.
@@ -347,6 +348,10 @@ class Placement:
         arm.L, leg.R ...).
     slots : dict
         panel -> :class:`vfit_engine.pattern.panel_slots.Slot` of the wrapped panels.
+    maps : dict
+        panel -> callable taking panel-frame points (k, 2) m to vfit's frame (k, 3) m, before the push out.
+    pushed : dict
+        panel -> how many points :meth:`to_body` has pushed out of the body so far.
     """
 
     body: BodyParts
