@@ -9,9 +9,8 @@ from vfit_engine.body.segment import SIX_PARTS
 from vfit_engine.errors import InputError
 from vfit_engine.geometry import closest_point_barycentric
 from vfit_engine.pattern.model import Edge, EdgeRef, Panel, Pattern, Stitch
-from vfit_engine.pattern.placement import (
-    GARMENTCODE_MEAN_BODY, Slot, garmentcode_landmarks, place, resolve_slots, slot_from_text,
-)
+from vfit_engine.pattern.panel_slots import Slot, resolve_slots, slot_from_text
+from vfit_engine.pattern.placement import GARMENTCODE_MEAN_BODY, garmentcode_landmarks, place
 from vfit_engine.pattern.placement_body import BodyParts
 
 PATTERNS = Path(__file__).resolve().parents[2] / "shared" / "assets" / "patterns"
@@ -61,6 +60,31 @@ def test_signed_distance_matches_brute_force(female):
     front = torso[np.argmax(torso[:, 2])] + np.array([0.0, 0.0, 0.05])  # 5 cm before the bust point
     assert female.signed_distance(inside[None])[0][0] < -0.03
     assert 0.035 < female.signed_distance(front[None])[0][0] <= 0.05 + 1e-12
+
+
+def test_girth_and_waist_of_a_tube():
+    """A tube of 64-gon sections, narrowest (r = 0.1 m) from y = 0.4 to 0.6: its tape girth is the 64-gon's
+    perimeter 2 n r sin(pi / n), and the waist the middle of the narrow stretch."""
+    n, ys = 64, np.linspace(0.0, 1.0, 101)
+    r = 0.1 + 0.5 * np.maximum(0.0, np.abs(ys - 0.5) - 0.1)
+    ang = 2 * np.pi * np.arange(n) / n
+    verts = np.concatenate([np.column_stack([ri * np.sin(ang), np.full(n, y), ri * np.cos(ang)])
+                            for y, ri in zip(ys, r)])
+    j = np.arange(n)
+    quads = np.concatenate([np.column_stack([k * n + j, k * n + (j + 1) % n, (k + 1) * n + (j + 1) % n,
+                                             (k + 1) * n + j]) for k in range(len(ys) - 1)])
+    tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    tube = BodyParts(verts, tris, np.full(len(verts), SIX_PARTS.index("torso")), {})
+    for y in (0.45, 0.503, 0.3):
+        ri = 0.1 + 0.5 * max(0.0, abs(y - 0.5) - 0.1)
+        g, centre = tube.girth(y)
+        if abs(y - 0.5) <= 0.1:  # between two rings of one radius the section is the 64-gon itself
+            assert g == pytest.approx(2 * n * ri * np.sin(np.pi / n), rel=1e-12)
+        else:  # rings of different radii: the section's hull lies between the two rings' 64-gons
+            assert 2 * n * (ri - 0.005) * np.sin(np.pi / n) < g < 2 * n * (ri + 0.005) * np.sin(np.pi / n)
+        np.testing.assert_allclose(centre, 0.0, atol=1e-12)
+    assert tube.narrowest(0.2, 0.9, step=0.01, tol=1e-9) == pytest.approx(0.5, abs=1e-9)
+    assert tube.narrowest(0.45, 0.9, step=0.01, tol=1e-9) == pytest.approx(0.525, abs=1e-9)
 
 
 # ---------------------------------------------------------------------------------------- frame mapping
@@ -185,6 +209,16 @@ def test_wrapped_panels_on_their_side(wrapped, female):
         other = arm_r if arm is arm_l else arm_l
         assert np.linalg.norm(c - arm) < np.linalg.norm(c - other) - 0.3, name
     assert centre("left_sleeve_f")[2] > centre("left_sleeve_b")[2]
+    # trousers round their leg, in front or behind it; a cuff round the left wrist; a collar round the neck
+    leg_l, leg_r = (female.part_verts(p).mean(0) for p in ("leg.L", "leg.R"))
+    assert centre("pants_left_front")[0] > 0 and centre("pants_left_front")[2] > leg_l[2]
+    assert centre("pants_right_back")[0] < 0 and centre("pants_right_back")[2] < leg_r[2]
+    tree = cKDTree(female.surface)
+    cuff = centre("cuff_left")
+    assert SIX_PARTS[female.labels[tree.query(cuff)[1]]] == "arm.L"
+    assert cuff[1] < female.levels["armpit"] - 0.15 and cuff[0] > 0.3
+    collar = centre("collar")
+    assert abs(collar[0]) < 0.01 and female.levels["shoulder"] < collar[1] < female.levels["shoulder"] + 0.05
     # tops at their landmarks: the torso at the shoulder line, the skirt at the waist
     lv = female.levels
     assert pl.raw("left_ftorso", [[0.1, 0.6]])[0, 1] == pytest.approx(lv["shoulder"])
@@ -238,6 +272,9 @@ def test_ring_panels_do_not_overlap(wrapped):
     ("SleeveLeftBack", Slot("sleeve", "back", None, "L")),
     ("waistband", Slot("waistband", "front")),
     ("Collar", Slot("collar", "front")),
+    ("right_sleeve_cuff_b", Slot("cuff", "back", None, "R")),
+    ("pant_f_l", Slot("leg", "front", None, "L")),
+    ("wb_back", Slot("waistband", "back")),
 ])
 def test_keyword_table(text, slot):
     assert slot_from_text(text) == slot

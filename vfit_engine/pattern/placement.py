@@ -23,9 +23,9 @@ Frame mapping (``Placement.method[panel] == "frame"``), for a pattern made for a
 Automatic arrangement (``"wrapped: <part>"``), for any other frame (Garment-Pattern-Generator's T-pose, DXF
 with no placement) or when asked: each panel is bent isometrically round a cylinder round the body part it
 belongs to, as CLO's arrangement points on bounding cylinders. The part comes from ``mapping`` {panel: slot},
-else from keywords in the panel's name, then its label, then the pattern's file name (:data:`KINDS`,
-:data:`SIDES`; e.g. ``left_ftorso`` = torso, front, left half; ``rbsleeve`` = right sleeve, back; ``skirt_back``;
-``lfsleeve``); a panel with no keyword that is sewn to a sleeve is a torso panel.
+else from keywords in the panel's name, then its label, then the pattern's file name (the keyword table of
+:mod:`vfit_engine.pattern.panel_slots`; e.g. ``left_ftorso`` = torso, front, left half; ``rbsleeve`` = right
+sleeve, back; ``skirt_back``); a panel with no keyword that is sewn to a sleeve is a torso panel.
 
 * A ring is the panels of one kind round one part. Its axis: the torso's vertical axis (torso, skirt,
   waistband, collar) or the principal axis of the arm or leg. Its radius: the part's largest distance from
@@ -34,8 +34,8 @@ else from keywords in the panel's name, then its label, then the pattern's file 
 * A panel's "up" is its +y (tailors draw with the grain vertical), except a sleeve's: towards its edges sewn
   to a non-sleeve panel (the cap), else its grain line. Up runs along the axis towards the part's top.
 * Its top sits at the part's top landmark: the shoulder line (torso, sleeves: the top of the arm), the waist
-  (skirts, trousers, the waistband's middle), the shoulder line for a collar's bottom, 85 % down the arm for
-  a cuff's bottom.
+  (skirts, trousers, the waistband's middle), the shoulder line for a collar's bottom, the wrist for a cuff's
+  bottom (round the forearm).
 * Round the axis, a front panel is centred on the front, a back on the back, a side panel on its side; a
   left or right half starts at the centre line and runs to its side. The panel's +x runs towards the body's
   left on front and back panels alike (GarmentCode's and Garment-Pattern-Generator's convention: a back panel
@@ -51,12 +51,13 @@ body's normal at its closest point to ``clearance`` (``Placement.pushed`` counts
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from vfit_engine.errors import InputError
+from vfit_engine.pattern.panel_slots import resolve_slots, slot_kind
+from vfit_engine.pattern.placement_body import BodyParts
 
 #: The body GarmentCode's shared patterns were made for (``garmentcode_body_mean_all.yaml``, cm): the one used
 #: when a GarmentCode pattern names no body.
@@ -67,47 +68,16 @@ GARMENTCODE_MEAN_BODY = dict(height=171.99, head_l=26.3262, waist_line=36.8913, 
 #: Frames whose panels are placed by mapping their frame (same pose family as vfit's A-pose).
 MAPPED_FRAMES = ("garmentcode",)
 
-#: Kinds of panel, the keywords that name them (searched as substrings of the name's words, in this order)
-#: and the part they wrap round ("arm", "leg": the side's arm or leg).
-KINDS = (
-    ("collar", ("collar", "neckband", "hood")),
-    ("cuff", ("cuff",)),
-    ("waistband", ("waistband", "wb", "belt")),
-    ("sleeve", ("sleeve",)),
-    ("skirt", ("skirt", "godet")),
-    ("leg", ("pant", "trouser", "short", "leg")),
-    ("torso", ("torso", "bodice", "body", "shirt", "tee", "top", "yoke", "dress", "blouse", "jacket")),
-)
-RING_PART = {"collar": "neck", "cuff": "arm", "waistband": "torso", "sleeve": "arm", "skirt": "hips",
-             "leg": "leg", "torso": "torso"}
-#: Side words; a kind word's leftover letters are read as sides too (``lfsleeve``: l, f; ``btorso``: b).
-SIDES = {"front": "front", "back": "back", "left": "left", "right": "right",
-         "f": "front", "b": "back", "l": "left", "r": "right"}
-
 #: An arm's top is the highest arm vertex (along the arm's axis) within this distance (m) of the axis.
 ARM_TOP_RADIUS = 0.04
 #: Fraction of the arm's length, from its top, whose vertices give a sleeve's axis (the upper arm).
 UPPER_ARM = 0.45
-#: Fraction of the arm's length, from its top, where a cuff's bottom sits.
-CUFF_AT = 0.85
+#: Fraction of the leg's length, from the sole, left out of its ring (the foot sticks out forwards).
+FOOT = 0.1
+#: Fraction of the arm's length (hand included), from its top, where the wrist is: a cuff's bottom.
+WRIST_AT = 0.72
 #: A ring's radius is at least its panels' widths summed over 2 pi times this (a small gap between them).
 RING_SLACK = 1.05
-
-
-@dataclass(frozen=True)
-class Slot:
-    """Where a panel goes: its ``kind`` (a :data:`KINDS` name), ``side`` (front, back, left, right), ``half``
-    (left, right or None) and ``limb`` (L, R or None: which arm or leg)."""
-
-    kind: str
-    side: str = "front"
-    half: str | None = None
-    limb: str | None = None
-
-    @property
-    def part(self):
-        p = RING_PART[self.kind]
-        return f"{p}.{self.limb}" if p in ("arm", "leg") else p
 
 
 # ---------------------------------------------------------------------------------------- frame mapping
@@ -178,102 +148,6 @@ class FrameMap:
         return np.column_stack([cx + s * p[:, 0], self.height(p[:, 1]), cz + s * p[:, 2]])
 
 
-# ---------------------------------------------------------------------------------------- slots
-def _words(text):
-    """Lower-case words of a name: split at non-letters and at camelCase humps."""
-    text = re.sub(r"([a-z])([A-Z])", r"\1 \2", text or "")
-    return [w for w in re.split(r"[^a-z]+", text.lower()) if w]
-
-
-def slot_from_text(text):
-    """The :class:`Slot` that keywords in ``text`` name, or None when they name no kind of panel.
-
-    Sides: whole words (``front``, ``left``, ``f``, ``l`` ...) and the letters left over beside a kind word
-    (``lfsleeve``, ``btorso``). No side word: front; left or right alone: a side panel for a torso or skirt
-    ring, the limb for a sleeve, cuff or leg.
-    """
-    kind, sides = None, []
-    for w in _words(text):
-        if w in SIDES:
-            sides.append(SIDES[w])
-            continue
-        for k, keys in KINDS:
-            key = next((key for key in keys if key in w), None)
-            if key is not None and kind is None:
-                kind = k
-                rest = w.replace(key, "", 1)
-                if rest and all(c in "lrfb" for c in rest):
-                    sides += [SIDES[c] for c in rest]
-                break
-    if kind is None:
-        return None
-    return _slot(kind, sides)
-
-
-def _slot(kind, sides):
-    fb = next((s for s in sides if s in ("front", "back")), None)
-    lr = next((s for s in sides if s in ("left", "right")), None)
-    limb = {"left": "L", "right": "R", None: None}[lr]
-    if kind in ("sleeve", "cuff", "leg"):
-        return Slot(kind, fb or "front", None, limb or "L")
-    if fb is None and lr is not None:
-        return Slot(kind, lr)
-    return Slot(kind, fb or "front", lr)
-
-
-def resolve_slots(pattern, mapping=None):
-    """{panel: Slot} of every panel; see the module docstring for the order of the rules.
-
-    ``mapping`` values are Slots or text read like a panel name ("sleeve left back", "skirt front").
-
-    Raises
-    ------
-    InputError
-        A panel whose part cannot be told: names the file and the panel and how to give a mapping.
-    """
-    mapping = dict(mapping or {})
-    source_slot = slot_from_text(re.sub(r".*[\\/]", "", pattern.source or ""))
-    slots, unknown = {}, []
-    for name, panel in pattern.panels.items():
-        given = mapping.get(name)
-        slot = given if isinstance(given, Slot) else slot_from_text(given) if given else None
-        if given and slot is None:
-            raise InputError(f"{pattern.source or 'pattern'}: panel {name!r}: mapping {given!r} names no part; "
-                             f"use words such as 'torso front', 'sleeve left back', 'skirt left', 'leg right front'")
-        if slot is None:
-            slot = slot_from_text(name)
-        if slot is None and panel.label:
-            own = slot_from_text(panel.label)
-            if own is not None:
-                sides = [SIDES[w] for w in _words(name) if w in SIDES]
-                slot = _slot(own.kind, sides) if sides else own
-        if slot is None and source_slot is not None:
-            sides = [SIDES[w] for w in _words(name) if w in SIDES]
-            slot = _slot(source_slot.kind, sides) if sides else None
-        if slot is None:
-            unknown.append(name)
-        slots[name] = slot
-    for name in unknown:  # sewn to a sleeve: a torso panel
-        sides = [SIDES[w] for w in _words(name) if w in SIDES]
-        if sides and any(slots.get(o) is not None and slots[o].kind == "sleeve" for o in _neighbours(pattern, name)):
-            slots[name] = _slot("torso", sides)
-    for name in unknown:
-        if slots[name] is None:
-            raise InputError(
-                f"{pattern.source or 'pattern'}: panel {name!r}: cannot tell which body part it goes round "
-                f"(no keyword in its name or label); give a mapping, e.g. {{{name!r}: 'torso front'}} "
-                f"(kinds: {', '.join(k for k, _ in KINDS)}; sides: front, back, left, right)")
-    return slots
-
-
-def _neighbours(pattern, name):
-    for st in pattern.stitches:
-        if st.a.panel == name:
-            yield st.b.panel
-        elif st.b.panel == name:
-            yield st.a.panel
-
-
 # ---------------------------------------------------------------------------------------- wrapping
 def panel_up(pattern, name, slot):
     """Unit 2D direction in the panel's frame that runs up the part (see the module docstring)."""
@@ -290,12 +164,6 @@ def panel_up(pattern, name, slot):
         g = np.asarray(panel.grain, dtype=np.float64)
         return g / np.linalg.norm(g)
     return np.array([0.0, 1.0])
-
-
-def slot_kind(pattern, name):
-    """Kind of a panel by its own name or label alone (None when they name none)."""
-    s = slot_from_text(name) or slot_from_text(pattern.panels[name].label or "")
-    return s.kind if s is not None else None
 
 
 @dataclass
@@ -332,19 +200,9 @@ def _ring(body, part, kind, height, width_sum, clearance):
                                   "neck": ("torso", "head")}[part])
     else:
         verts = body.part_verts(part)
-        origin, up = _principal_axis(verts)
-        if part.startswith("arm"):  # the upper arm's axis: the forearm bends forwards, the hand further
-            s = (verts - origin) @ up
-            origin, up = _principal_axis(verts[s >= s.max() - UPPER_ARM * np.ptp(s)])
+        verts, origin, up, top = _limb_axis(verts, part, kind, height, lv["waist"])
         front = np.array([0.0, 0.0, 1.0]) - up[2] * up
         front /= np.linalg.norm(front)
-        s_all = (verts - origin) @ up
-        # an arm's top: where its axis leaves the shoulder (the skin the axis runs into), not the far end of
-        # the part's cut against the torso, which sits inside the chest's reach
-        near_axis = np.linalg.norm((verts - origin) - np.outer(s_all, up), axis=1) < ARM_TOP_RADIUS
-        top = float(s_all[near_axis].max()) if part.startswith("arm") else (lv["waist"] - origin[1]) / up[1]
-        if kind == "cuff":
-            top = top - CUFF_AT * (top - float(s_all.min())) + height
     s = (verts - origin) @ up
     span = verts[(s >= top - height) & (s <= top)]
     span = span if len(span) else verts
@@ -352,6 +210,33 @@ def _ring(body, part, kind, height, width_sum, clearance):
     r_body = float(np.linalg.norm(radial, axis=1).max())
     radius = max(r_body + clearance, RING_SLACK * width_sum / (2.0 * np.pi))
     return Ring(origin, up, front, float(top), radius)
+
+
+def _limb_axis(verts, part, kind, height, waist):
+    """The vertices (k, 3) that size a limb's ring, its axis (origin, unit up) and its top's position on it (m).
+
+    A sleeve's axis is the upper arm's (the forearm bends forwards, the hand further), its top where the
+    axis leaves the shoulder (the skin the axis runs into, not the far end of the part's cut against the
+    torso, inside the chest's reach); a cuff's is the forearm's, its bottom at the wrist; a leg's is the
+    leg's without the foot, its top at the waist.
+    """
+    origin, up = _principal_axis(verts)
+    if not part.startswith("arm"):  # the leg without its foot, which sticks out forwards
+        s = (verts - origin) @ up
+        verts = verts[s >= s.min() + FOOT * np.ptp(s)]
+        origin, up = _principal_axis(verts)
+        return verts, origin, up, (waist - origin[1]) / up[1]
+    s = (verts - origin) @ up
+    length = np.ptp(s)
+    if kind == "cuff":
+        wrist = s.max() - WRIST_AT * length
+        origin, up = _principal_axis(verts[(s <= s.max() - UPPER_ARM * length) & (s >= wrist)])
+        at_wrist = verts[np.abs(s - wrist) < 0.01]
+        return verts, origin, up, float((at_wrist.mean(0) - origin) @ up) + height
+    origin, up = _principal_axis(verts[s >= s.max() - UPPER_ARM * length])
+    s = (verts - origin) @ up
+    near_axis = np.linalg.norm((verts - origin) - np.outer(s, up), axis=1) < ARM_TOP_RADIUS
+    return verts, origin, up, float(s[near_axis].max())
 
 
 def _principal_axis(verts):
@@ -410,10 +295,11 @@ def _turned_faces(pattern, faces):
     """{panel: mirrored?}: which face each wrapped panel shows.
 
     Which face a panel shows is a drawing convention (Garment-Pattern-Generator draws a back sleeve mirrored, a
-    back bodice not), so the panels turn over, one at a time and the one that gains most first, while that
-    brings the ends of stitched edges nearer their partners' ends (turning the first panel that gains anything
-    can leave both halves of a sleeve wrong). Ends pair as a stitch says, or against each other when it does
-    not say (both formats' convention: panels cut face up are seamed with their outlines running opposite ways).
+    back bodice not), so the panels turn over, a panel or two sewn panels at a time and the move that gains
+    most first, while that brings the ends of stitched edges nearer their partners' ends (turning the first
+    panel that gains anything can leave both halves of a sleeve wrong). Ends pair as a stitch says, or against
+    each other when it does not say (both formats' convention: panels cut face up are seamed with their
+    outlines running opposite ways).
     """
     ends = {}
     touching = {n: [] for n in faces}
@@ -428,19 +314,23 @@ def _turned_faces(pattern, faces):
             touching[st.b.panel].append(st)
     mirror = {n: False for n in faces}
 
-    def gap(n, state):
+    def gap(move, state):
         total = 0.0
-        for st in touching[n]:
+        for st in {id(st): st for n in move for st in touching[n]}.values():
             a, b = (faces[r.panel][int(state[r.panel])](ends[r]) for r in (st.a, st.b))
             total += float(np.linalg.norm(a - (b if st.opposed is False else b[::-1]), axis=1).sum())
         return total
 
+    # a move turns one panel, or two sewn together (two sleeve halves may each lose turning alone)
+    moves = {(n,) for n in faces if touching[n]}
+    moves |= {tuple(sorted((st.a.panel, st.b.panel)))
+              for n in faces for st in touching[n] if st.a.panel != st.b.panel}
     for _ in range(2 * len(faces)):
-        gains = {n: gap(n, mirror) - gap(n, {**mirror, n: not mirror[n]}) for n in faces if touching[n]}
-        best = max(gains, key=gains.get) if gains else None
+        gains = {m: gap(m, mirror) - gap(m, {**mirror, **{n: not mirror[n] for n in m}}) for m in moves}
+        best = max(sorted(gains), key=gains.get) if gains else None
         if best is None or gains[best] <= 1e-6:
             break
-        mirror[best] = not mirror[best]
+        mirror.update({n: not mirror[n] for n in best})
     return mirror
 
 
@@ -457,7 +347,11 @@ class Placement:
         panel -> ``"frame"`` or ``"wrapped: <part>"`` (a :data:`SIX_PARTS`-like part: torso, hips, neck,
         arm.L, leg.R ...).
     slots : dict
-        panel -> :class:`Slot` of the wrapped panels.
+        panel -> :class:`vfit_engine.pattern.panel_slots.Slot` of the wrapped panels.
+    maps : dict
+        panel -> callable taking panel-frame points (k, 2) m to vfit's frame (k, 3) m, before the push out.
+    pushed : dict
+        panel -> how many points :meth:`to_body` has pushed out of the body so far.
     """
 
     body: BodyParts

@@ -1,8 +1,9 @@
 """vfit's body as pattern placement reads it: its surface, its six parts, its landmark heights and girths, and
 the signed distance that keeps placed panels off it.
 
-Landmarks: floor, crotch, waist and armpit from the body's horizontal sections
-(:func:`vfit_engine.body.levels.body_levels`), the shoulder line at the base of the neck (the head of the rig's
+Landmarks: floor, crotch and armpit from the body's horizontal sections
+(:func:`vfit_engine.body.levels.body_levels`), the waist in the middle of the torso's narrowest stretch
+(:meth:`BodyParts.narrowest`), the shoulder line at the base of the neck (the head of the rig's
 ``neck01`` bone: 84.6 % of the default female body's height, where GarmentCode's ``height - head_l`` puts it on
 its mean body, 84.7 %), the top of the head. Parts: :func:`vfit_engine.body.segment.six_part_split`.
 """
@@ -44,6 +45,7 @@ class BodyParts:
     def __post_init__(self):
         self.normals = vertex_normals(self.surface, self.tris, outward=True)
         self._tree = cKDTree(self.surface)
+        self._torso_tris = self.tris[(self.labels[self.tris] == SIX_PARTS.index("torso")).all(1)]
         # triangles round each vertex (CSR), for the closest point among those of the nearest vertices
         order = np.argsort(self.tris.ravel(), kind="stable")
         self._vert_tris = order // 3
@@ -61,26 +63,54 @@ class BodyParts:
         neck_base = bone_positions(model, verts)["neck01"][0]
         levels = dict(floor=lv["y_min"], crotch=lv["crotch_y"], waist=lv["waist_y"], armpit=lv["armpit_y"],
                       shoulder=float(neck_base[1]), top=lv["y_max"], center_x=lv["center_x"])
-        return cls(surface, tris, six_part_split(model, verts), levels)
+        body = cls(surface, tris, six_part_split(model, verts), levels)
+        band = [float(surface[model.rulers[k]["vertex_indices"], 1].mean()) for k in ("hips-circ", "underbust-circ")]
+        body.levels["waist"] = body.narrowest(*band)
+        return body
+
+    def narrowest(self, y0, y1, step=0.005, tol=0.005):
+        """The waist (m): middle of the torso's narrowest stretch between heights ``y0`` and ``y1``.
+
+        The heights (every ``step``) whose tape girth is within ``tol`` (m) of the smallest, their median: a
+        body whose torso is a tube from waist to underbust has no one narrowest height, and the narrowest
+        x-width (:func:`body_levels`' waist) sat 6 cm above the girth's middle on a body morphed to
+        GarmentCode's mean body; vfit's ISO waist is searched in the same band (hips to underbust rulers).
+        """
+        ys = np.arange(min(y0, y1), max(y0, y1) + 0.5 * step, step)
+        g = np.array([self.girth(y)[0] for y in ys])
+        return float(np.median(ys[g <= g.min() + tol]))
 
     def part_verts(self, *parts):
         """Vertices (k, 3) m of the named :data:`SIX_PARTS`."""
         keep = np.isin(self.labels, [SIX_PARTS.index(p) for p in parts])
         return self.surface[keep]
 
-    def torso_slab(self, y, half=0.01):
-        """Torso vertices within ``half`` (m) of height ``y`` (widened until there are some)."""
-        torso = self.part_verts("torso")
-        for h in (half, 2 * half, 4 * half, 8 * half):
-            slab = torso[np.abs(torso[:, 1] - y) <= h]
-            if len(slab) >= 8:
-                return slab
-        return torso[np.argsort(np.abs(torso[:, 1] - y))[:8]]
+    def torso_section(self, y):
+        """Points (k, 2) (x, z) m where the torso's edges cross the plane at height ``y``.
+
+        The torso's triangles (all three corners on the torso) and its vertices within 1 cm when the plane
+        misses them (above the shoulders, below the crotch).
+        """
+        tri = self._torso_tris
+        pts = []
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            a, b = self.surface[tri[:, i]], self.surface[tri[:, j]]
+            cross = (a[:, 1] - y) * (b[:, 1] - y) < 0
+            a, b = a[cross], b[cross]
+            t = (y - a[:, 1]) / (b[:, 1] - a[:, 1])
+            pts.append((a + t[:, None] * (b - a))[:, [0, 2]])
+        on = np.unique(tri)
+        on = on[np.abs(self.surface[on, 1] - y) <= 1e-12]  # corners in the plane: no edge crosses there
+        pts = np.concatenate(pts + [self.surface[on][:, [0, 2]]])
+        if len(pts) < 8:
+            near = self.part_verts("torso")
+            pts = near[np.argsort(np.abs(near[:, 1] - y))[:16]][:, [0, 2]]
+        return pts
 
     def girth(self, y):
-        """Tape girth (m) of the torso at height ``y``: perimeter of the convex hull of its section, and the
-        hull's centre (x, z) m."""
-        xz = self.torso_slab(y)[:, [0, 2]]
+        """Tape girth (m) of the torso at height ``y``: perimeter of the convex hull of its section (a tape
+        bridges hollows), and the hull's centre (x, z) m."""
+        xz = self.torso_section(y)
         hull = xz[ConvexHull(xz).vertices]
         return float(np.linalg.norm(np.diff(np.vstack([hull, hull[:1]]), axis=0), axis=1).sum()), hull.mean(0)
 
