@@ -117,6 +117,8 @@ def build_solver(setup, settings, garment=None):
                   ground=setup.ground)
     solver.sweep_from(setup.pins.indices)
     if setup.seams.size:
+        if not isinstance(solver, SolverPD):
+            raise ValueError("sewing a pattern needs the projective solver (vfit_engine.drape.settings.projective)")
         solver.sew(setup.seams)
     for zone, strain in setup.zones:
         # the cloth round an opening the body forces wider may stretch that far, and it starts there
@@ -138,6 +140,25 @@ def _untangled_start(setup, settings, model):
     return untangle(start, setup.garment.mesh.face_verts, setup.garment.mesh.face_offsets, setup.collider,
                     model.spring_indices[sel], model.spring_rest[sel] * (1.0 + settings.untangle_strain),
                     settings.contact.skin, pinned=setup.pins.indices, max_iterations=int(settings.untangle_iterations))
+
+
+class _Sewing:
+    """A pattern's sewing over the first frames (``DrapeSettings.sew_frames``): gravity off, each seam no longer
+    than its gap at the start shrunk to 0 by ``sew_close`` of them; nothing when there are no seams."""
+
+    def __init__(self, solver, seams, start, st):
+        self.solver, self.st = solver, st
+        self.frames = int(st.sew_frames) if seams.size else 0
+        if self.frames:
+            solver.weigh(0.0)
+            self.gap = np.linalg.norm(start[seams[:, 0]] - start[seams[:, 1]], axis=1)
+
+    def frame(self, frame):
+        """Set the seams' lengths (and gravity) for ``frame`` (from 1)."""
+        if frame <= self.frames:
+            self.solver.close_seams(self.gap * max(1.0 - frame / (self.st.sew_close * self.frames), 0.0))
+        elif frame == self.frames + 1 and self.frames:
+            self.solver.weigh(1.0)
 
 
 class _SettleTest:
@@ -226,15 +247,9 @@ def run_drape(setup, settings=None, on_frame=None):
     t0 = time.perf_counter()
     ramp = max(int(st.ramp_frames), 1)
     converged, frame = False, 0
-    sew = int(st.sew_frames) if setup.seams.size else 0
-    if sew:
-        solver.weigh(0.0)
-        gap0 = np.linalg.norm(start[setup.seams[:, 0]] - start[setup.seams[:, 1]], axis=1)
+    sewing = _Sewing(solver, setup.seams, start, st)
     for frame in range(1, int(st.max_frames) + 1):
-        if sew and frame <= sew:
-            solver.close_seams(gap0 * max(1.0 - frame / (0.75 * sew), 0.0))
-        if sew and frame == sew + 1:
-            solver.weigh(1.0)
+        sewing.frame(frame)
         if frame == st.slow_frames + 1 and st.slow_iterations > solver.settings.iterations:
             solver.set_iterations(st.slow_iterations)  # still moving: DrapeSettings.slow_frames says why
         alpha = min(frame / ramp, 1.0)
@@ -254,7 +269,7 @@ def run_drape(setup, settings=None, on_frame=None):
             raise DrapeDiverged(f"simulation diverged at frame {frame} ({what}); last good frame {frame - 1}",
                                 frame=frame, last_good=last_good[:n].copy(), last_good_frame=frame - 1)
         np.copyto(last_good, state.pos)
-        settled = settle.frame(state.pos, frame >= max(ramp, sew + 1))
+        settled = settle.frame(state.pos, frame >= max(ramp, sewing.frames + 1))
         if on_frame is not None:
             on_frame(frame, state.pos[:n], settle.share)
         if settled:

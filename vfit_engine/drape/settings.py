@@ -52,6 +52,11 @@ class DrapeSettings:
         stretch the cloth around it and launch it).
     ramp_frames : int
         Frames over which the push limit ramps and the pins move to their targets.
+    sew_frames : int
+        A pattern's sewing (:mod:`vfit_engine.drape.sew`): for this many frames gravity is off and each seam may be
+        no longer than its gap at the start shrunk linearly to 0 by three quarters of them; the settle test
+        starts after them. 40 frames close a seam 45 cm apart (the GarmentCode shirt's sides) at 1.5 cm a frame,
+        which the body's contacts hold.
     settle_frames, settle_step, settle_share, settle_max_step :
         The settle test: the cloth has settled when, for ``settle_frames`` consecutive frames after
         the ramp, at most ``settle_share`` of its vertices moved more than ``settle_step`` (m) in a
@@ -99,6 +104,8 @@ class DrapeSettings:
     push_end: float = 0.005
     ramp_frames: int = 40
     sew_frames: int = 40
+    #: by this share of ``sew_frames`` every seam is closed (the rest let the sewn garment come to rest unweighed)
+    sew_close: float = 0.75
     settle_frames: int = 10
     settle_step: float = 0.0001
     settle_share: float = 0.005

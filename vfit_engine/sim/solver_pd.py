@@ -29,7 +29,7 @@ from vfit_engine.kernels.bending import hinge_scratch
 from vfit_engine.kernels.contact_make import make_contacts
 from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
-from vfit_engine.kernels.pd import chebyshev, contact_forces, pd_rhs, soft_push
+from vfit_engine.kernels.pd import chebyshev, contact_forces, contact_friction, pd_rhs, soft_push
 from vfit_engine.kernels.pd_matrix import acting_bands, band_matrix
 from vfit_engine.kernels.supernodal_ldl import sn_solve3
 from vfit_engine.sim.bending import hinge_gradient_norms
@@ -373,6 +373,8 @@ class SolverPD:
                    self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
                    self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm,
                    self._hinge_work)
+            contact_friction(x, xp, self._inv_mass, self._w_c, self._gap, self._lam, self._nrm,
+                             float(st.friction_in_solve) * float(c.friction), self._b)
             np.copyto(self._xh, self._b)
             sn_solve3(*factor, self._xh, self._work)
             omega = chebyshev(x, self._xh, self._xprev, k, int(st.chebyshev_delay), float(st.chebyshev_rho), omega)

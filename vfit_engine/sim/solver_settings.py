@@ -118,6 +118,10 @@ class PDSettings(VerletSettings):
     bend_in_matrix : bool
         The bend limits and bend springs (second neighbours) as elements of the matrix (else as forces with a
         diagonal, :mod:`vfit_engine.kernels.pd`).
+    friction_in_solve : float
+        Share of the contacts' Coulomb coefficient that acts inside the iterations, holding each pushed vertex
+        where it lay along the body (:func:`vfit_engine.kernels.pd.contact_friction`); 0: friction on the
+        velocity after the step only.
     """
 
     substeps: int = 2
@@ -130,6 +134,7 @@ class PDSettings(VerletSettings):
     contact_sweeps: int = 0
     bend_in_matrix: bool = True
     band_weight: float = 0.3
+    friction_in_solve: float = 1.0
 
 
 @dataclass(frozen=True)
