@@ -72,20 +72,24 @@ def _attach_value(argv, flag):
     return out
 
 
+def case_targets(model, measurer, gender, deltas):
+    """[(label, delta cm, targets)]: the default body of ``gender`` (targets None) and its waist and hips +-delta
+    (``targets``: {"waist", "hips"} iso girths, m), the cases' bodies."""
+    from vfit_engine.body.resolve import default_body
+
+    start = measurer.measure(default_body(model, gender).verts, "iso", mass=False).values
+    return [("default", d, None) if d == 0 else
+            (f"w+h {d:+g} cm", d, {"waist": start["waist"] + d / 100.0, "hips": start["hips"] + d / 100.0})
+            for d in deltas]
+
+
 def case_bodies(model, measurer, gender, deltas):
-    """[(label, delta cm, Body)]: the default body of ``gender`` and the waist and hips +-delta bodies."""
+    """[(label, delta cm, Body)]: the bodies of :func:`case_targets`."""
     from vfit_engine.body.resolve import default_body, resolve_body
 
-    default = default_body(model, gender)
-    start = measurer.measure(default.verts, "iso", mass=False).values
-    out = []
-    for d in deltas:
-        if d == 0:
-            out.append(("default", d, default))
-            continue
-        targets = {"waist": start["waist"] + d / 100.0, "hips": start["hips"] + d / 100.0}
-        out.append((f"w+h {d:+g} cm", d, resolve_body(model, targets=targets, gender=gender, definition="iso")))
-    return out
+    return [(label, d, default_body(model, gender) if targets is None else
+             resolve_body(model, targets=targets, gender=gender, definition="iso"))
+            for label, d, targets in case_targets(model, measurer, gender, deltas)]
 
 
 def read_obj_polygons(path):

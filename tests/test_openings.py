@@ -74,3 +74,26 @@ def test_female_suit_sleeves_are_smaller_than_the_arm(body_model):
         assert len(tight) == 2 and all(o["vertices"] == 21 for o in tight)  # the two sleeve hems
         assert min(o["required_strain"] for o in tight) > 0.10
         assert all(abs(abs(o["centre_m"][0]) - 0.24) < 0.01 for o in tight)  # at the upper arms
+
+
+def test_the_body_tape_at_the_openings_own_place_on_a_cone():
+    """On a cone (radius 5 cm at y = 0, 0.5 mm less per mm up) a cuff's tape at its own place is the cone's
+    section there, and the smallest within the offsets the one 3 cm above: at most the tape at its place, so an
+    opening the body forces wider (``required_strain`` > 0) is never longer as made than the body at its place
+    plus the skin's 2 pi gap (the table's rule never reads its stretch as 0)."""
+    m = trimesh.creation.cone(radius=0.15, height=0.3, sections=256)  # apex up the z axis, base at z = 0
+    turn = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # z up -> y up
+    verts = np.asarray(m.vertices, dtype=np.float64) @ turn.T - [0.0, 0.2, 0.0]  # radius 5 cm at y = 0
+    tris = np.asarray(m.faces, dtype=np.int64)
+    radius_at = lambda y: 0.15 * (0.1 - y) / 0.3  # noqa: E731
+    chord = 2 * 256 * math.sin(math.pi / 256)
+    for y0, r in ((0.0, 0.045), (0.03, 0.04)):  # a cuff the cone forces wider at its lower loop, one it does not
+        cuff = tube(r).with_verts(tube(r).verts + [0.0, y0, 0.0])
+        found = check_openings(cuff, verts, tris, skin=0.002)
+        assert len(found) == 2
+        for o in found:
+            y = o["centre_m"][1]
+            assert o["body_tape_here_mm"] == pytest.approx(1000 * chord * radius_at(y), rel=1e-3)
+            assert o["body_tape_mm"] == pytest.approx(1000 * chord * radius_at(y + 0.03), rel=1e-3)
+            if o["required_strain"] > 0:
+                assert o["rest_length_mm"] < o["body_tape_here_mm"] + 1000 * 2 * math.pi * 0.002

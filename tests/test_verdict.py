@@ -11,7 +11,8 @@ from click.testing import CliRunner
 
 from vfit_cli.main import cli
 from vfit_engine.fit.verdict import (LOOSE_EASE_CM, TIGHT_SHARE, TOO_LOOSE_EASE_CM, VERDICTS, base_region,
-                                     summary_line, too_tight, verdict)
+                                     summary_line, tight_line, too_tight, verdict)
+from vfit_engine.verdict_check import disagreements
 
 DEMO_SKIRT = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
 COTTON = 0.10
@@ -91,6 +92,16 @@ def test_summary_line_says_each_verdict_and_the_estimated_girths():
     assert summary_line([]) == "no region the garment goes round"
 
 
+def test_a_pair_whose_sides_differ_is_said_side_by_side():
+    """Issue 33's customer: the right thigh tight and the left fitted read "tight at the ... thigh" and "fitted at
+    the ... thigh": one name, two verdicts. Each side is named where their verdicts differ, once where not."""
+    rows = [_row("left thigh", "fitted"), _row("right thigh", "tight", 0.036), _row("left upper arm", "fitted"),
+            _row("right upper arm", "fitted")]
+    line = summary_line(rows)
+    assert line == "tight at the right thigh (+4 %), fitted at the left thigh and upper arms"
+    assert tight_line(rows) == "tight at the right thigh"
+
+
 def test_wrote_line_names_the_folder_and_the_files_a_user_opens():
     from vfit_cli._outdir import wrote_line
 
@@ -125,50 +136,79 @@ def skirts(tmp_path_factory):
     return out
 
 
-def _groups(summary):
-    """verdict -> the text of its part of the summary line."""
-    text = summary.split("; estimated")[0]
-    starts = sorted((m.start(), v) for v in VERDICTS for m in re.finditer(rf"(?:^|, ){re.escape(v)} at the ", text)
-                    if not (v == "tight" and text[max(m.start() - 4, 0):m.start() + 2].endswith("too t")))
-    return {v: text[a:(starts[i + 1][0] if i + 1 < len(starts) else len(text))] for i, (a, v) in enumerate(starts)}
-
-
 @pytest.mark.parametrize("name", list(BODIES))
 def test_every_output_says_the_same_verdict(skirts, name):
-    from vfit_engine.fit.verdict import NOT_COVERED, stretch
-
+    """The one checker (vfit_engine.verdict_check, also scripts/verdict_consistency.py's) finds no output that
+    says another verdict than the row's; every measurement given has its row."""
     report, printed = skirts[name]
+    assert not disagreements(report, printed)
+    assert "hips" in {r["region"] for r in report["fit"]}
+
+
+def _twisted(report, printed):
+    """Each way one output can be made to disagree with the others: (what, report, printed)."""
+    import copy
+
     rows = report["fit"]
-    limit = report["material"]["wearable_stretch"]
-    regions = {r["region"] for r in rows}
-    given = report["body"].get("targets_cm", {})
-    assert set(given) <= regions and "hips" in regions  # every measurement given has its row
-    groups = _groups(report["fit_summary"])
-    for r in rows:
-        line = next(ln for ln in printed.splitlines() if ln.strip().startswith(r["region"] + ("*" if r["key"] else " ")))
-        assert line.rstrip().endswith(r["verdict"]) and ("(estimated)" in line) == bool(r["estimated"])
-        base = base_region(r["region"])
-        if r["verdict"] == NOT_COVERED:  # given, and the garment does not go round it: said so, no verdict
-            assert r["region"] in given and r["garment_girth_cm"] is None
-            assert f"not covered: the {base}" in report["fit_summary"]
-            continue
-        # the row's verdict is the rule's on its own figures
-        assert r["verdict"] == verdict(r["region"], r["girth_strain"], r["ease_cm"], limit, r.get("required_strain"))
-        # the summary names the region under that verdict, and under no other
-        assert base in groups[r["verdict"]] or base + "s" in groups[r["verdict"]], (r, report["fit_summary"])
-        assert not any(base in text for v, text in groups.items() if v != r["verdict"]), report["fit_summary"]
-        # the printed table's line says the stretch the verdict reads
-        assert f"{100 * stretch(r):.1f}" in line
-    assert "fit: " + report["fit_summary"] in printed
-    wear = [r["region"] for r in rows if r["verdict"] == "too tight to wear"]
-    assert sorted(t["region"] for t in report["too_tight"]) == sorted(wear)
-    for region in wear:
-        assert f"too tight to wear at the {region}: " in printed
-    said = printed.count("too tight to wear at the ") - ("too tight to wear at the " in report["fit_summary"])
-    assert said == len(wear)
-    # named as a tailor names them: no rig bone, no vertex coordinates; the girths given are not estimated
-    assert not re.search(r"\.[LR]\b|upperarm|vertices at", printed)
-    assert not any(r["estimated"] for r in rows if r["region"] in given)
+    tight = next(r for r in rows if r["verdict"] in VERDICTS[:2])
+    calm = next(r for r in rows if r["verdict"] in VERDICTS[2:])
+    out = []
+    r2 = copy.deepcopy(report)
+    next(r for r in r2["fit"] if r["region"] == calm["region"])["verdict"] = "loose" if calm["verdict"] != "loose" \
+        else "fitted"
+    out.append(("a row's verdict", r2, printed))
+    line = next(ln for ln in printed.splitlines() if ln.strip().startswith(calm["region"] + ("*" if calm["key"]
+                                                                                                  else " ")))
+    other = "fitted" if calm["verdict"] != "fitted" else "loose"
+    out.append(("the printed table", report, printed.replace(line, line.rstrip()[:-len(calm["verdict"])] + other)))
+    r3 = copy.deepcopy(report)
+    r3["fit_summary"] = r3["fit_summary"].replace(f"{tight['verdict']} at the ", "fitted at the ", 1)
+    out.append(("the summary", r3, printed.replace(report["fit_summary"], r3["fit_summary"])))
+    r4 = copy.deepcopy(report)
+    r4["too_tight"] = r4["too_tight"][1:] if r4["too_tight"] else [dict(region=calm["region"])]
+    out.append(("too_tight", r4, printed))
+    if " (estimated)" in printed:
+        out.append(("the printed estimated mark", report, printed.replace(" (estimated)", "", 1)))
+    return out
+
+
+def test_the_checker_finds_an_output_that_says_another_verdict(skirts):
+    """The checker can fail: each output of the small body's drape changed alone is caught."""
+    report, printed = skirts["small body"]
+    for what, rep, text in _twisted(report, printed):
+        assert disagreements(rep, text), what
+
+
+#: The shared garments (male_casualsuit02's full drape is test_fit's ``suit02``, checked there) on their default
+#: bodies, few frames: whether the outputs agree does not need a settled drape, only a table to read (its
+#: verdicts are those of a drape not yet settled). ~3 s CPU each (scripts/verdict_consistency.py drapes all four
+#: to the end on three bodies each, and the issue's customers).
+SHARED = ("male_casualsuit06", "female_casualsuit01", "female_sportsuit01")
+SHARED_FRAMES = "10"
+
+
+@pytest.fixture(scope="module")
+def shared_drapes(tmp_path_factory):
+    """``vfit drape GARMENT --frames 10`` of each of :data:`SHARED` on its default body: name -> (report, text)."""
+    from test_drape import GARMENTS
+
+    if not GARMENTS.is_dir():
+        pytest.skip("../shared/assets/garments (MakeHuman clothes) absent")
+    out = {}
+    for name in SHARED:
+        d = tmp_path_factory.mktemp("shared") / "o"
+        r = CliRunner().invoke(cli, ["drape", str(GARMENTS / name / f"{name}.obj"), "--frames", SHARED_FRAMES,
+                                     "--every", "0", "-o", str(d)])
+        assert r.exit_code in (0, 3), r.output
+        out[name] = (json.loads((d / "report.json").read_text()), r.output)
+    return out
+
+
+@pytest.mark.parametrize("name", SHARED)
+def test_every_output_of_a_shared_garment_says_the_same_verdict(shared_drapes, name):
+    report, printed = shared_drapes[name]
+    assert len(report["fit"]) >= 8  # the body regions and the openings: a table to check
+    assert not disagreements(report, printed)
 
 
 def test_the_verdicts_follow_the_body(skirts):

@@ -38,7 +38,8 @@ where the garment as made is longer round the region than the body's girth plus 
 keeps between cloth and skin, the garment goes round the region without stretching, and what stretches its
 line there is other cloth (a shirt's collar held open by the shoulders round a neck it stands clear of: 3.7 %
 with 15 cm of ease; a trouser leg pulled from the seat round a thigh it is 3 cm bigger than): it reads no
-more than 0. The yarns' peaks stay in ``max_strain``.
+more than 0. The yarns' peaks stay in ``max_strain``. An opening is judged so against ``body_girth_here_cm``,
+the body's tape in its own plane (a neckline pulled open by the shoulders round a neck it has room round).
 
 ``key`` marks the girths letter sizes are labelled by (EN 13402: bust/chest, waist and hips; every
 region's verdict decides ``vfit size``'s choice). A girth the customer gave that
@@ -426,9 +427,12 @@ class FitTable:
                 k = int(setup.body_parts[near])
                 part = PARTS[k] if k >= 0 else None
             name, side = _opening_name(part, pos[piece == piece[loop[0]]], pos[loop], self.chest_y)
-            row = _row(name, side, o["body_tape_mm"] / 1000.0, draped, draped / rest - 1.0 if rest > 0 else 0.0,
-                       float(maps["strain"][loop].max()), float(maps["pressure_kpa"][loop].max()), limit,
-                       need=o["required_strain"])
+            strain, here = (draped / rest - 1.0 if rest > 0 else 0.0), o["body_tape_here_mm"]
+            if here is not None and rest > 0:  # the body where the opening lies, not the smallest tape near it
+                strain = region_stretch(strain, rest, here / 1000.0)
+            row = _row(name, side, o["body_tape_mm"] / 1000.0, draped, strain, float(maps["strain"][loop].max()),
+                       float(maps["pressure_kpa"][loop].max()), limit, need=o["required_strain"])
+            row["body_girth_here_cm"] = None if here is None else round(here / 10.0, 2)
             row["estimated"] = False  # the body's own girth under the opening, not a customer's measurement
             rows.append(row)
         return rows

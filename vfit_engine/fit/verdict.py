@@ -143,6 +143,16 @@ def is_tight(row):
     return row.get("verdict") in TIGHT
 
 
+def said_names(rows):
+    """region -> the name a line says it by: without its side (``thigh``, a pair said once) where both sides
+    have one verdict, with it (``right thigh``) where they differ, so no name is given two verdicts."""
+    verdicts = {}
+    for r in rows:
+        verdicts.setdefault(base_region(r["region"]), set()).add(r["verdict"])
+    return {r["region"]: base_region(r["region"]) if len(verdicts[base_region(r["region"])]) == 1 else r["region"]
+            for r in rows}
+
+
 def summary_line(rows):
     """One line for people, verdict by verdict, tightest first, e.g. ``too tight to wear at the chest (+12 %),
     tight at the sleeve hems (+5 %, the body needs >= 4 %), fitted at the waist and hips, loose at the thighs
@@ -150,14 +160,15 @@ def summary_line(rows):
     (an opening also the stretch the body forces on it), loose ones their ease."""
     groups = {v: {} for v in VERDICTS}
     estimated, uncovered = [], []
+    said = said_names(rows)
     for r in rows:
-        base = base_region(r["region"])
+        base = said[r["region"]]
         if r["verdict"] == NOT_COVERED:
             if base not in uncovered:
                 uncovered.append(base)
             continue
-        if r.get("estimated") and base not in estimated:
-            estimated.append(base)
+        if r.get("estimated") and base_region(r["region"]) not in estimated:
+            estimated.append(base_region(r["region"]))  # a pair's girth is estimated once
         tight = r["verdict"] in TIGHT
         figure = max(r["girth_strain"], 0.0) if tight else r["ease_cm"]
         g = groups[r["verdict"]].setdefault(base, [0, -math.inf, 0.0])
@@ -186,8 +197,9 @@ def tight_line(rows):
     """The regions a customer feels, for the preview's title: ``too tight to wear at the chest, tight at the
     waistband``, or ``nothing tight`` (the verdicts of the rows, as :func:`summary_line` says them)."""
     parts = []
+    said = said_names(rows)
     for v in TIGHT:
-        names = list(dict.fromkeys(base_region(r["region"]) for r in rows if r["verdict"] == v))
+        names = list(dict.fromkeys(said[r["region"]] for r in rows if r["verdict"] == v))
         if names:
             parts.append(f"{v} at the {join(names)}")
     return ", ".join(parts) if parts else "nothing tight"

@@ -98,21 +98,26 @@ def check_openings(mesh, body_verts, body_tris, skin=0.002, offsets=(-0.03, -0.0
     list of dict
         One per opening that encircles a body part: ``indices`` ((L,) int64, the loop),
         ``vertices`` (count), ``centre_m`` (3,), ``rest_length_mm``, ``body_tape_mm`` (smallest over
-        ``offsets``), ``required_strain`` (fraction, <= 0 when the opening fits).
+        ``offsets``), ``required_strain`` (fraction, <= 0 when the opening fits), ``body_tape_here_mm`` (the
+        tape in the opening's own plane, offset 0, where the draped opening lies; None when ``offsets`` has no
+        0 or the plane cuts no loop round its centre there).
     """
     rest = mesh.verts
     pos = rest if pos is None else np.asarray(pos, dtype=np.float64)
     loops = loops or BodyLoops(body_verts, body_tris)
     out = []
     for loop in closed_loops(mesh):
-        tapes = [_perimeter(hull) for _, hull, _ in loops.tapes(pos[loop], offsets)]
-        if not tapes:
+        found = loops.tapes(pos[loop], offsets)
+        if not found:
             continue
-        tape = min(tapes)
+        tape = min(_perimeter(hull) for _, hull, _ in found)
+        # the body at the opening's own place (its plane), the larger loop where it cuts two
+        here = max((_perimeter(hull) for off, hull, _ in found if off == 0.0), default=None)
         length = float(np.linalg.norm(rest[loop] - np.roll(rest[loop], -1, axis=0), axis=1).sum())
         need = (tape + 2.0 * np.pi * skin) / length - 1.0 if length > 0 else 0.0
         out.append(dict(indices=loop, vertices=int(loop.size), centre_m=[float(v) for v in pos[loop].mean(axis=0)],
-                        rest_length_mm=1000.0 * length, body_tape_mm=1000.0 * tape, required_strain=float(need)))
+                        rest_length_mm=1000.0 * length, body_tape_mm=1000.0 * tape, required_strain=float(need),
+                        body_tape_here_mm=None if here is None else 1000.0 * here))
     return out
 
 
