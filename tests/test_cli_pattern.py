@@ -4,6 +4,7 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 from PIL import Image
@@ -93,3 +94,63 @@ def test_bad_input_is_one_line_exit_2_and_nothing_written(tmp_path, case):
     after = {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()}
     assert after == before  # nothing written, nothing removed, the input untouched
     assert "Traceback" not in r.output and os.path.getsize(copy) > 0
+
+
+# -- vfit drape PATTERN ----------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def skirt_drape(tmp_path_factory):
+    """The shared four-panel skirt sewn and draped through `vfit drape` (60 frames: sewn, not settled: exit 3)."""
+    out = tmp_path_factory.mktemp("skirt")
+    r = CliRunner().invoke(cli, ["drape", str(SKIRT), "-o", str(out), "--frames", "60", "--every", "0"])
+    return out, r
+
+
+def read_obj(path):
+    v, vt, groups, faces = [], [], [], []
+    for line in Path(path).read_text().splitlines():
+        tag, *rest = line.split() or [""]
+        if tag == "v":
+            v.append([float(t) for t in rest])
+        elif tag == "vt":
+            vt.append([float(t) for t in rest])
+        elif tag == "g":
+            groups.append(rest[0])
+        elif tag == "f":
+            faces.append([tuple(int(p) - 1 if p else -1 for p in c.split("/")[:2]) for c in rest])
+    return np.array(v), np.array(vt), groups, faces
+
+
+@needs_shared
+def test_drape_sews_a_pattern_and_writes_it_with_its_panels(skirt_drape):
+    from vfit_engine.pattern.load import load
+    from vfit_engine.pattern.mesh import mesh_pattern
+
+    out, r = skirt_drape
+    assert r.exit_code == 3, r.output  # 60 frames: sewn, still settling
+    assert "against the flat pattern" in r.output and "slid" not in r.output
+    v, vt, groups, faces = read_obj(out / "final.obj")
+    assert groups == ["front", "right", "back", "left"]
+    # UVs: the panels' own coordinates, metres of the pattern (the skirt's panels are 0.3-0.6 m tall)
+    assert len(vt) == len(v) and 0.3 < np.ptp(np.array(vt)[:, 1]) < 0.8
+    cloth = mesh_pattern(load(SKIRT)[0])
+    pairs = cloth.seam_pairs
+    gap = np.linalg.norm(v[pairs[:, 0]] - v[pairs[:, 1]], axis=1)
+    assert gap.max() < 0.002  # sewn: every seam within 2 mm
+    report = json.loads((out / "report.json").read_text())
+    assert report["pattern"]["seam_pairs"] == len(pairs) and report["pattern"]["panels"] == 4
+
+
+@needs_shared
+@pytest.mark.parametrize("args,names", [
+    (("--pin", "none"), "--pin"), (("--rest", "graded"), "--rest"), (("--refine", "1"), "--refine")])
+def test_drape_refuses_mesh_options_on_a_pattern(tmp_path, args, names):
+    r = CliRunner().invoke(cli, ["drape", str(SKIRT), "-o", str(tmp_path / "o"), *args])
+    assert r.exit_code == 2 and names in r.output and len(lines(r.output)) == 1
+    assert not (tmp_path / "o").exists()
+
+
+def test_drape_refuses_pattern_options_on_a_mesh(tmp_path):
+    skirt = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
+    r = CliRunner().invoke(cli, ["drape", str(skirt), "-o", str(tmp_path / "o"), "--spacing", "15"])
+    assert r.exit_code == 2 and "--spacing" in r.output and len(lines(r.output)) == 1
