@@ -408,3 +408,72 @@ def test_bands_weighed_by_whether_they_act_reach_the_same_rest_sooner():
     assert constant[2] == 0 and weighed[2] > 0
     assert weighed[0] == pytest.approx(constant[0], abs=2e-4)
     assert weighed[1][39] < 0.5 * constant[1][39]  # frame 40: slower by half at least
+
+
+def _friction_reference(x, x0, inv_mass, w_c, gap, lam, nrm, mu, b):
+    """contact_friction in NumPy: the tangential slip since the step's start pulled back, clamped to the cone."""
+    b = b.copy()
+    g = np.linalg.norm(gap, axis=1)
+    force = w_c * g + np.maximum(lam, 0.0)
+    n = np.where((lam > 0)[:, None], nrm, gap / np.where(g > 0, g, 1.0)[:, None])
+    d = x - x0
+    t = d - np.sum(d * n, axis=1, keepdims=True) * n
+    tl = np.linalg.norm(t, axis=1)
+    act = (inv_mass > 0) & (w_c > 0) & (force > 0) & (tl > 0)
+    s = np.minimum(1.0, mu * force / np.where(act, w_c * tl, 1.0))
+    b[act] -= (w_c * s)[act, None] * t[act]
+    return b
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_contact_friction_matches_the_reference(seed):
+    from vfit_engine.kernels.pd import contact_friction
+
+    rng = np.random.default_rng(seed)
+    n = 200
+    x0 = rng.normal(size=(n, 3))
+    x = x0 + rng.normal(scale=1e-3, size=(n, 3))
+    inv_mass = np.where(rng.random(n) < 0.1, 0.0, 1.0)
+    w_c = rng.uniform(10, 100, n)
+    gap = rng.normal(scale=1e-4, size=(n, 3)) * (rng.random(n) < 0.5)[:, None]  # half pushed by the soft term
+    lam = np.where(rng.random(n) < 0.3, rng.uniform(0, 0.01, n), 0.0)
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    b = rng.normal(size=(n, 3))
+    out = b.copy()
+    contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, 0.8, out)
+    np.testing.assert_allclose(out, _friction_reference(x, x0, inv_mass, w_c, gap, lam, nrm, 0.8, b), rtol=1e-12,
+                               atol=1e-15)
+    # both regimes occur: some vertices stick (s = 1), some slide (s < 1); and without friction nothing changes
+    assert not np.array_equal(out, b)
+    same = b.copy()
+    contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, 0.0, same)
+    np.testing.assert_array_equal(same, b)
+
+
+def test_friction_in_the_solve_holds_cloth_on_a_slope():
+    """A sheet resting on a slab tilted 15 degrees (tan 15 deg = 0.27, below cotton's friction 0.8) stays where it
+    lies with friction in the iterations; with friction on the velocity only it creeps downhill."""
+    import trimesh
+
+    from vfit_engine.collide.body_mesh import MeshCollider
+    from vfit_engine.sim.contact_points import contact_points
+    from vfit_engine.sim.solver_settings import ContactSettings
+
+    tilt = math.radians(15.0)
+    rot = np.array([[1, 0, 0], [0, math.cos(tilt), -math.sin(tilt)], [0, math.sin(tilt), math.cos(tilt)]])
+    slab = trimesh.creation.box(extents=(1.0, 0.1, 1.0))
+    body = MeshCollider(np.ascontiguousarray(slab.vertices @ rot.T), np.ascontiguousarray(slab.faces))
+    pos, fv, fo = grid_polygons(6, 6, 0.2, 0.2)
+    n = rot @ np.array([0.0, 1.0, 0.0])
+    start = np.ascontiguousarray(pos @ rot.T + (0.05 + 0.0021) * n)  # on the slab's top face, skin 2 mm
+    model = Model.from_polygons(fv, fo, pos, "cotton")
+    moved = {}
+    for share in (1.0, 0.0):
+        solver = SolverPD(model, PDSettings(friction_in_solve=share), ContactSettings(), body=body,
+                          points=contact_points(fv, fo, pos, spacing=0.015))
+        state = solver.init_state(1 / 120, pos=start)
+        for _ in range(60):
+            solver.step_frame(state, 1 / 60)
+        moved[share] = float(np.linalg.norm((state.pos - start).mean(axis=0)))
+    assert moved[1.0] < 0.2 * moved[0.0]

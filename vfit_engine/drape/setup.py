@@ -107,6 +107,8 @@ class DrapeSetup:
         surface vertex, to say where the cloth is tight.
     ground : float or None
         Height (m, y) of the ground plane under the body (:func:`ground_height`), None: none.
+    seams : (s, 2) int64
+        A sewing pattern's vertex pairs to sew (:mod:`vfit_engine.drape.sew`); none for a garment mesh.
     """
 
     garment: object

@@ -414,7 +414,11 @@ class FitTable:
         return out
 
     def _opening_rows(self, setup, pos, maps, limit):
-        """Rows of the garment's openings that go round a body part, at the draped position."""
+        """Rows of the garment's openings that go round a body part, at the draped position (none yet for a sewn
+        pattern: its panels' outlines are boundaries of the cloth, and its openings are only those of the sewn
+        garment, docs/patterns.md)."""
+        if setup.seams.size:
+            return []
         piece = setup.garment.pieces
         rows = []
         for o in check_openings(setup.garment.mesh, self.body_verts, setup.body_tris, pos=pos, loops=self.loops):
