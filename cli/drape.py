@@ -107,7 +107,8 @@ def body_targets(body_path, girths, height, weight):
               help="A DXF-AAMA pattern's seams (JSON sidecar: docs/pattern-formats.md); AAMA carries none.")
 @click.option("--spacing", type=click.FloatRange(3, 100), default=None,
               help="A pattern's cloth: edge length in mm (smaller: finer folds, slower) [default: 20].")
-@click.option("--arrange", type=click.Choice(["auto", "frame", "wrap"]), default="auto", show_default=True,
+@click.option("--arrange", type=EngineChoice("vfit_engine.pattern.placement:ARRANGEMENTS"), default="auto",
+              show_default=True,
               help="How a pattern's panels start round the body: frame = where its file places them (GarmentCode), "
                    "wrap = each wrapped round its body part (named by the panel), auto = frame when it can.")
 @click.option("-o", "--output", "outdir", default="drape_out", show_default=True,
@@ -357,7 +358,7 @@ def _interrupted_writing(setup, result, o, written, context, exc):
 def _unsettled(setup, result, settings, report):
     """The exit-3 error line of a drape that did not settle; returns 3."""
     drop = float(setup.start[:, 1].mean() - result.pos[:, 1].mean())
-    if setup.pins.indices.size == 0 and drop > FELL_M and setup.info["rest"] != "pattern":  # a pattern has no pins
+    if setup.pins.indices.size == 0 and drop > FELL_M and not setup.seams.size:  # a sewn pattern has no pins
         # unpinned, it slides down the body (or falls off it): say so, not only that it kept moving
         click.echo(f"Error: the garment slid {100 * drop:.0f} cm down the body in {result.frames} frames and did "
                    f"not stop: {_no_pins(setup.pins.info)}", err=True)

@@ -102,7 +102,7 @@ def test_bad_input_is_one_line_exit_2_and_nothing_written(tmp_path, case):
 def skirt_drape(tmp_path_factory):
     """The shared four-panel skirt sewn and draped through `vfit drape` (60 frames: sewn, not settled: exit 3)."""
     out = tmp_path_factory.mktemp("skirt")
-    r = CliRunner().invoke(cli, ["drape", str(SKIRT), "-o", str(out), "--frames", "60", "--every", "0"])
+    r = CliRunner().invoke(cli, ["drape", str(SKIRT), "-o", str(out), "--frames", "60", "--every", "100"])
     return out, r
 
 
@@ -139,6 +139,11 @@ def test_drape_sews_a_pattern_and_writes_it_with_its_panels(skirt_drape):
     assert gap.max() < 0.002  # sewn: every seam within 2 mm
     report = json.loads((out / "report.json").read_text())
     assert report["pattern"]["seam_pairs"] == len(pairs) and report["pattern"]["panels"] == 4
+    assert report["surface_inside_percent"] <= 0.5 and report["surface_deeper_than_2mm"] == 0  # the surface bars
+    assert report["strain_reference"].startswith("the flat pattern")
+    # no pins: the seams and the body hold it up; it hangs from the hips, no higher than it started
+    start, _, _, _ = read_obj(out / "frame_0000.obj")
+    assert v[:, 1].max() <= start[:, 1].max() + 0.01
 
 
 @needs_shared

@@ -250,7 +250,7 @@ def test_fall_message_does_not_recommend_the_pins_in_use(capsys, mode, dropped, 
     """A single triangle under --pin auto lost its pins and fell: the message said 'use --pin auto'."""
     from vfit_cli.drape import _unsettled
 
-    setup = SimpleNamespace(start=np.full((3, 3), 1.0),
+    setup = SimpleNamespace(start=np.full((3, 3), 1.0), seams=np.zeros((0, 2), np.int64),
                             pins=SimpleNamespace(indices=np.zeros(0, np.int64),
                                                  info=dict(mode=mode, dropped_inside=dropped)))
     result = SimpleNamespace(pos=np.zeros((3, 3)), frames=40)

@@ -93,11 +93,11 @@ def test_bad_seams_are_refused():
 
 
 @pytest.fixture(scope="module")
-def sewn_skirt():
-    """The shared four-panel skirt sewn on the default female body (60 frames: the sewing and a little)."""
+def skirt_setup():
+    """The shared four-panel skirt set up to be sewn on the default female body (the sewing itself is draped in
+    tests/test_cli_pattern.py, through the CLI)."""
     from vfit_engine.body.model import BodyModel
     from vfit_engine.body.resolve import default_body
-    from vfit_engine.drape.loop import run_drape
     from vfit_engine.drape.settings import DrapeSettings, projective
     from vfit_engine.drape.sew import prepare_pattern_drape
     from vfit_engine.pattern.load import load
@@ -105,31 +105,35 @@ def sewn_skirt():
     model = BodyModel.load()
     body = default_body(model, "female")
     pattern, _ = load(PATTERNS / "gpg_skirt_4_panels.json")
-    st = projective(DrapeSettings(max_frames=60))
-    setup = prepare_pattern_drape(pattern, body, model, settings=st)
-    return pattern, setup, run_drape(setup, st)
+    return pattern, prepare_pattern_drape(pattern, body, model, settings=projective(DrapeSettings()))
 
 
 @needs_shared
-def test_a_pattern_sews_closed_on_the_body_with_the_flat_pattern_as_its_rest(sewn_skirt):
-    pattern, setup, result = sewn_skirt
-    seams = setup.seams
-    gap = np.linalg.norm(result.pos[seams[:, 0]] - result.pos[seams[:, 1]], axis=1)
-    assert gap.max() < 0.002  # the issue's bar: every seam within 2 mm
-    assert result.metrics["surface_inside_percent"] <= 0.5 and result.metrics["surface_deeper_than_2mm"] == 0
-    # the rest shape is the flat pattern: each panel's rest edges are its own outline's scale, flat (z = 0)
+def test_a_pattern_is_set_up_with_the_flat_pattern_as_its_rest(skirt_setup):
+    from vfit_engine.pattern.mesh import mesh_pattern
+
+    pattern, setup = skirt_setup
+    cloth = mesh_pattern(pattern)
+    # the rest shape is the flat pattern: every panel as cut (its UVs), flat (z = 0), the panels apart
     assert np.all(setup.rest[:, 2] == 0.0)
-    names = [g for g, _ in setup.garment.mesh.groups]
-    assert names == list(pattern.panels) or sorted(names) == sorted(pattern.panels)
-    # no pins: the seams and the body hold it; it hangs from the hips, below its start's top
-    assert setup.pins.indices.size == 0 and result.pos[:, 1].max() < setup.start[:, 1].max() + 0.01
+    for k in range(len(cloth.panel_names)):
+        sel = np.flatnonzero(cloth.vertex_panel == k)
+        np.testing.assert_allclose(setup.rest[sel, :2] - setup.rest[sel[0], :2], cloth.uv[sel] - cloth.uv[sel[0]],
+                                   atol=1e-12)
+    assert [g for g, _ in setup.garment.mesh.groups] == list(cloth.panel_names)
+    # the seams are the mesh's pairs less a dart's tip sewn to itself; no pins (the seams and the body hold it)
+    assert len(setup.seams) == int(np.count_nonzero(cloth.seam_pairs[:, 0] != cloth.seam_pairs[:, 1]))
+    assert setup.pins.indices.size == 0
+    # the start: every panel placed off the body
+    d, _, _, _ = setup.collider.query(setup.start, max_out=0.05, max_in=np.inf)
+    assert d.min() > 0.0
 
 
 @needs_shared
-def test_sewing_needs_the_projective_solver(sewn_skirt):
+def test_sewing_needs_the_projective_solver(skirt_setup):
     from vfit_engine.drape.loop import build_solver
     from vfit_engine.drape.settings import DrapeSettings
 
-    _, setup, _ = sewn_skirt
+    _, setup = skirt_setup
     with pytest.raises(ValueError, match="projective"):
         build_solver(setup, DrapeSettings())

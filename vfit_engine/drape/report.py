@@ -92,7 +92,8 @@ def drape_report(setup=None, result=None, diverged=None, interrupted=None, **con
         wall_time_s=result.wall_time,
         setup_time_s=result.setup_time + (setup.info["setup_time_s"] if setup is not None else 0.0),
         settle=result.settle,
-        strain_reference="the garment as given (its own size), polygon edges",
+        strain_reference="the flat pattern (its panels as cut), polygon edges" if setup.info["rest"] == "pattern"
+        else "the garment as given (its own size), polygon edges",
         **m,
         solver=result.info,
     )

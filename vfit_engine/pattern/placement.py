@@ -390,6 +390,10 @@ class Placement:
         return p
 
 
+#: How panels start round the body (:func:`place`): auto = the frame when it can be mapped, else wrapped.
+ARRANGEMENTS = ("auto", "frame", "wrap")
+
+
 def place(pattern, body, mapping=None, clearance=0.01, arrange="auto"):
     """Put the panels of ``pattern`` on vfit's ``body``.
 
@@ -415,7 +419,7 @@ def place(pattern, body, mapping=None, clearance=0.01, arrange="auto"):
     InputError
         ``arrange="frame"`` on a frame that cannot be mapped; a panel whose part cannot be told (wrap).
     """
-    if arrange not in ("auto", "frame", "wrap"):
+    if arrange not in ARRANGEMENTS:
         raise InputError(f"arrangement {arrange!r}: expected auto, frame or wrap")
     if not (np.isfinite(clearance) and 0.0 <= clearance <= 0.2):
         raise InputError(f"clearance {clearance} m is outside 0-0.2 m")
