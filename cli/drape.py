@@ -289,8 +289,8 @@ def _drape_pattern(o):
     from vfit_engine.pattern.mesh import DEFAULT_SPACING
 
     pat, warnings = load(o.garment, o.seams)
-    for w in warnings:
-        click.echo(f"Warning: {o.garment}: {w}", err=True)
+    for w in warnings:  # each names the file
+        click.echo(f"Warning: {w}", err=True)
     model = BodyModel.load()
     o.progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
                      f"reading the body {o.body_path}" if o.body_path else "loading the default body")

@@ -24,7 +24,7 @@ def _load(path, seams):
 
     pat, warnings = load(path, seams)
     for w in warnings:
-        click.echo(f"warning: {w}", err=True)
+        click.echo(f"Warning: {w}", err=True)  # each names the file
     return pat
 
 

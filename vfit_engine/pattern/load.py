@@ -46,4 +46,5 @@ def load(path, seams=None, gathers=False):
     else:
         known = ", ".join(f"{k} ({v})" for k, v in FORMATS.items())
         raise InputError(f"{path}: not a pattern file; vfit reads {known}")
-    return pattern, list(pattern.warnings) + validate.validate(pattern, gathers=gathers)
+    # every warning names the file (the validation's do already)
+    return pattern, [f"{path}: {w}" for w in pattern.warnings] + validate.validate(pattern, gathers=gathers)
