@@ -141,6 +141,9 @@ def test_drape_sews_a_pattern_and_writes_it_with_its_panels(skirt_drape):
     assert report["pattern"]["seam_pairs"] == len(pairs) and report["pattern"]["panels"] == 4
     assert report["surface_inside_percent"] <= 0.5 and report["surface_deeper_than_2mm"] == 0  # the surface bars
     assert report["strain_reference"].startswith("the flat pattern")
+    # the fit table's openings are the sewn skirt's (its waist), not its four panels' outlines
+    regions = [r["region"] for r in report["fit"]]
+    assert regions.count("waistband") == 1 and len(regions) == len(set(regions)), regions
     # no pins: the seams and the body hold it up; it hangs from the hips, no higher than it started
     start, _, _, _ = read_obj(out / "frame_0000.obj")
     assert v[:, 1].max() <= start[:, 1].max() + 0.01

@@ -97,3 +97,35 @@ def test_the_body_tape_at_the_openings_own_place_on_a_cone():
             assert o["body_tape_mm"] == pytest.approx(1000 * chord * radius_at(y + 0.03), rel=1e-3)
             if o["required_strain"] > 0:
                 assert o["rest_length_mm"] < o["body_tape_here_mm"] + 1000 * 2 * math.pi * 0.002
+
+
+def test_a_sewn_tube_has_the_openings_of_the_garment_not_of_its_panels(arm):
+    """Two flat panels 20 cm wide, sewn along both sides round the arm (a seam's two sides two vertices, as a sewn
+    pattern's cloth keeps them): with the weld, two openings of 40 cm as made (the panels' widths summed, from
+    their flat lengths); without it, only the panels' outlines, none of which goes round the arm."""
+    from vfit_engine.pattern.weld import sewn_to
+
+    verts, tris = arm
+    around, rows = 24, 3  # each panel: 13 columns (12 quads) x 3 rows
+    cols = around // 2 + 1
+    rest, placed, faces = [], [], []
+    for panel in range(2):
+        for r, y in enumerate(np.linspace(-0.03, 0.03, rows)):
+            for c in range(cols):
+                rest.append([0.3 * panel + 0.2 * c / (cols - 1), y, 0.0])  # flat, the panels apart
+                t = math.pi * (panel + c / (cols - 1))
+                placed.append([0.0636 * math.cos(t), y, 0.0636 * math.sin(t)])  # round the arm: 40 cm round
+        base = panel * rows * cols
+        faces += [[base + r * cols + c, base + r * cols + c + 1, base + (r + 1) * cols + c + 1,
+                   base + (r + 1) * cols + c] for r in range(rows - 1) for c in range(cols - 1)]
+    # the seams: panel 0's last column to panel 1's first, panel 1's last to panel 0's first
+    pairs = [[r * cols + cols - 1, rows * cols + r * cols] for r in range(rows)]
+    pairs += [[rows * cols + r * cols + cols - 1, r * cols] for r in range(rows)]
+    mesh = mesh_from_faces(np.array(rest), faces)
+    placed = np.array(placed)
+    assert check_openings(mesh, verts, tris, pos=placed) == []
+    found = check_openings(mesh, verts, tris, pos=placed, weld=sewn_to(len(rest), pairs))
+    assert len(found) == 2
+    for o in found:
+        assert o["rest_length_mm"] == pytest.approx(400.0, rel=1e-9)
+        assert o["body_tape_mm"] == pytest.approx(1000 * 2 * math.pi * 0.05, rel=0.01)

@@ -56,6 +56,7 @@ from vfit_engine.drape.settings import DrapeSettings
 from vfit_engine.fit.maps import fit_maps
 from vfit_engine.fit.verdict import uncovered_row, verdict
 from vfit_engine.garment.openings import BodyLoops, check_openings
+from vfit_engine.pattern.weld import sewn_to
 from vfit_engine.geometry import winding_number
 from vfit_engine.section import MeshSections, rotation_to_y
 
@@ -414,14 +415,15 @@ class FitTable:
         return out
 
     def _opening_rows(self, setup, pos, maps, limit):
-        """Rows of the garment's openings that go round a body part, at the draped position (none yet for a sewn
-        pattern: its panels' outlines are boundaries of the cloth, and its openings are only those of the sewn
-        garment, docs/patterns.md)."""
-        if setup.seams.size:
-            return []
-        piece = setup.garment.pieces
+        """Rows of the garment's openings that go round a body part, at the draped position (a sewn pattern's:
+        those of the garment its seams make, not its panels' outlines)."""
+        piece, weld = setup.garment.pieces, None
+        if setup.seams.size:  # the sewn garment is one piece
+            weld = sewn_to(setup.garment.mesh.n_verts, setup.seams)
+            piece = np.zeros_like(piece)
         rows = []
-        for o in check_openings(setup.garment.mesh, self.body_verts, setup.body_tris, pos=pos, loops=self.loops):
+        for o in check_openings(setup.garment.mesh, self.body_verts, setup.body_tris, pos=pos, loops=self.loops,
+                                weld=weld):
             loop = o["indices"]
             draped = float(np.linalg.norm(pos[loop] - np.roll(pos[loop], -1, axis=0), axis=1).sum())
             rest = o["rest_length_mm"] / 1000.0

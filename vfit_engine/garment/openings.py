@@ -22,6 +22,7 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import ConvexHull
 
 from vfit_engine.geometry import closed_loops, winding_number
+from vfit_engine.io.meshdata import MeshData
 from vfit_engine.section import MeshSections, rotation_to_y
 
 
@@ -75,8 +76,22 @@ def _perimeter(poly):
     return float(np.linalg.norm(np.roll(poly, -1, axis=0) - poly, axis=1).sum()) if len(poly) >= 3 else 0.0
 
 
+def _edge_rest_lengths(mesh, weld):
+    """{(a, b): rest length (m)} of every edge of the sewn faces (``weld`` applied, a < b), from the face edge it
+    comes from in ``mesh`` (a seam's edge has two, equal to the seam's ease: the first is kept)."""
+    fo, fv, rest = mesh.face_offsets, mesh.face_verts, mesh.verts
+    out = {}
+    for f in range(len(fo) - 1):
+        corners = fv[fo[f]:fo[f + 1]]
+        for u, v in zip(corners, np.roll(corners, -1)):
+            key = (min(weld[u], weld[v]), max(weld[u], weld[v]))
+            if key not in out:
+                out[key] = float(np.linalg.norm(rest[u] - rest[v]))
+    return out
+
+
 def check_openings(mesh, body_verts, body_tris, skin=0.002, offsets=(-0.03, -0.02, -0.01, 0.0, 0.01, 0.02, 0.03),
-                   pos=None, loops=None):
+                   pos=None, loops=None, weld=None):
     """Each closed opening of the garment against the body part it encircles.
 
     Parameters
@@ -92,6 +107,10 @@ def check_openings(mesh, body_verts, body_tris, skin=0.002, offsets=(-0.03, -0.0
         Shifts of the cutting plane along its normal; the smallest tape over them is used.
     loops : BodyLoops or None
         The body's (default: built here).
+    weld : (n,) int64 or None
+        A sewn pattern's cloth (its seams' two sides are two vertices each): the vertex each vertex is sewn to
+        (the smallest of its seam's), so that the openings are the sewn garment's, not the panels' outlines;
+        each loop edge's rest length is then that of the face edge it comes from (its panel's flat length).
 
     Returns
     -------
@@ -105,15 +124,20 @@ def check_openings(mesh, body_verts, body_tris, skin=0.002, offsets=(-0.03, -0.0
     rest = mesh.verts
     pos = rest if pos is None else np.asarray(pos, dtype=np.float64)
     loops = loops or BodyLoops(body_verts, body_tris)
+    sewn = mesh if weld is None else MeshData(rest, mesh.face_offsets, np.asarray(weld, np.int64)[mesh.face_verts])
+    edge_rest = None if weld is None else _edge_rest_lengths(mesh, weld)
     out = []
-    for loop in closed_loops(mesh):
+    for loop in closed_loops(sewn):
         found = loops.tapes(pos[loop], offsets)
         if not found:
             continue
         tape = min(_perimeter(hull) for _, hull, _ in found)
         # the body at the opening's own place (its plane), the larger loop where it cuts two
         here = max((_perimeter(hull) for off, hull, _ in found if off == 0.0), default=None)
-        length = float(np.linalg.norm(rest[loop] - np.roll(rest[loop], -1, axis=0), axis=1).sum())
+        if edge_rest is None:
+            length = float(np.linalg.norm(rest[loop] - np.roll(rest[loop], -1, axis=0), axis=1).sum())
+        else:
+            length = float(sum(edge_rest[(min(a, b), max(a, b))] for a, b in zip(loop, np.roll(loop, -1))))
         need = (tape + 2.0 * np.pi * skin) / length - 1.0 if length > 0 else 0.0
         out.append(dict(indices=loop, vertices=int(loop.size), centre_m=[float(v) for v in pos[loop].mean(axis=0)],
                         rest_length_mm=1000.0 * length, body_tape_mm=1000.0 * tape, required_strain=float(need),

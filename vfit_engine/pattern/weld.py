@@ -192,6 +192,15 @@ def components(count, pairs):
     return connected_components(graph, directed=False)[1].astype(np.int64)
 
 
+def sewn_to(count, pairs):
+    """(count,) int64: the vertex each of ``count`` vertices is sewn to through the seam ``pairs`` (k, 2) -- the
+    smallest of its seam's vertices; itself where it is on no seam."""
+    comp = components(count, pairs)
+    first = np.empty(int(comp.max()) + 1 if count else 0, dtype=np.int64)
+    first[comp[::-1]] = np.arange(count, dtype=np.int64)[::-1]
+    return first[comp]
+
+
 def split_for_sewing(uv, vertex_panel, faces, seam_pairs, rounds=4):
     """Split the interior edges of the triangles that sewing would collapse or double, at their midpoints.
 
