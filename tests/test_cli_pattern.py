@@ -100,9 +100,10 @@ def test_bad_input_is_one_line_exit_2_and_nothing_written(tmp_path, case):
 
 @pytest.fixture(scope="module")
 def skirt_drape(tmp_path_factory):
-    """The shared four-panel skirt sewn and draped through `vfit drape` (60 frames: sewn, not settled: exit 3)."""
+    """The shared four-panel skirt sewn and draped through `vfit drape` (45 frames: sewn by frame 30, not settled:
+    exit 3)."""
     out = tmp_path_factory.mktemp("skirt")
-    r = CliRunner().invoke(cli, ["drape", str(SKIRT), "-o", str(out), "--frames", "60", "--every", "100"])
+    r = CliRunner().invoke(cli, ["drape", str(SKIRT), "-o", str(out), "--frames", "45", "--every", "100"])
     return out, r
 
 

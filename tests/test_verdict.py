@@ -183,7 +183,7 @@ def test_the_checker_finds_an_output_that_says_another_verdict(skirts):
 #: bodies, few frames: whether the outputs agree does not need a settled drape, only a table to read (its
 #: verdicts are those of a drape not yet settled). ~3 s CPU each (scripts/verdict_consistency.py drapes all four
 #: to the end on three bodies each, and the issue's customers).
-SHARED = ("male_casualsuit06", "female_casualsuit01", "female_sportsuit01")
+SHARED = ("male_casualsuit06", "female_sportsuit01")  # the default man (suit02) is in test_fit, reused there
 SHARED_FRAMES = "10"
 
 
