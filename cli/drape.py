@@ -237,10 +237,8 @@ def _drape(o):
     """The drape command's work inside its held OUTDIR (``o``: the options); returns the exit code (0, 3 not
     settled, 130 / 143 interrupted)."""
     import os
-    import time
 
     from vfit_engine.body.model import BodyModel
-    from vfit_engine.body.resolve import resolve_body
     from vfit_engine.drape import DrapeSettings, prepare_drape
     from vfit_engine.drape.setup import garment_gender
     from vfit_engine.errors import InputError
@@ -263,9 +261,7 @@ def _drape(o):
     tag_gender = garment_gender(g)
     for w in g.warnings:
         click.echo(f"Warning: {o.garment}: {w}", err=True)
-    progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
-                   f"reading the body {o.body_path}" if o.body_path else "loading the default body")
-    body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or tag_gender or "female", o.definition)
+    body = _body(o, model, tag_gender)
     settings = DrapeSettings(refine=o.refine, ground=o.ground,
                              **({} if o.frames is None else dict(max_frames=o.frames)))
     progress.stage("placing the garment, pinning it, building the body's collision grid")
@@ -278,10 +274,19 @@ def _drape(o):
     return _run(setup, settings, model, o, g, context)
 
 
+def _body(o, model, garment_gender):
+    """The body a drape is on (``o``: the options), its stage said; the gender given, else the garment's, else
+    female."""
+    from vfit_engine.body.resolve import resolve_body
+
+    o.progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
+                     f"reading the body {o.body_path}" if o.body_path else "loading the default body")
+    return resolve_body(model, o.body_path, o.targets, o.weight, o.gender or garment_gender or "female", o.definition)
+
+
 def _drape_pattern(o):
     """``_drape`` of a sewing pattern: read and checked, its panels meshed, placed and sewn on the body."""
     from vfit_engine.body.model import BodyModel
-    from vfit_engine.body.resolve import resolve_body
     from vfit_engine.drape import DrapeSettings
     from vfit_engine.drape.settings import projective
     from vfit_engine.drape.sew import prepare_pattern_drape
@@ -292,9 +297,7 @@ def _drape_pattern(o):
     for w in warnings:  # each names the file
         click.echo(f"Warning: {w}", err=True)
     model = BodyModel.load()
-    o.progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
-                     f"reading the body {o.body_path}" if o.body_path else "loading the default body")
-    body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or "female", o.definition)
+    body = _body(o, model, None)
     # sewing closes the seams with the projective solver (drape.sew)
     settings = projective(DrapeSettings(ground=o.ground, **({} if o.frames is None else dict(max_frames=o.frames))))
     o.progress.stage("meshing the panels, placing them round the body, building the body's collision grid")

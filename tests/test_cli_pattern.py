@@ -107,30 +107,18 @@ def skirt_drape(tmp_path_factory):
     return out, r
 
 
-def read_obj(path):
-    v, vt, groups, faces = [], [], [], []
-    for line in Path(path).read_text().splitlines():
-        tag, *rest = line.split() or [""]
-        if tag == "v":
-            v.append([float(t) for t in rest])
-        elif tag == "vt":
-            vt.append([float(t) for t in rest])
-        elif tag == "g":
-            groups.append(rest[0])
-        elif tag == "f":
-            faces.append([tuple(int(p) - 1 if p else -1 for p in c.split("/")[:2]) for c in rest])
-    return np.array(v), np.array(vt), groups, faces
-
-
 @needs_shared
 def test_drape_sews_a_pattern_and_writes_it_with_its_panels(skirt_drape):
     from vfit_engine.pattern.load import load
     from vfit_engine.pattern.mesh import mesh_pattern
 
+    from vfit_engine.io.mesh import read_mesh
+
     out, r = skirt_drape
-    assert r.exit_code == 3, r.output  # 60 frames: sewn, still settling
+    assert r.exit_code == 3, r.output  # 45 frames: sewn, still settling
     assert "against the flat pattern" in r.output and "slid" not in r.output
-    v, vt, groups, faces = read_obj(out / "final.obj")
+    final = read_mesh(out / "final.obj")
+    v, vt, groups = final.verts, final.uvs, [name for name, _ in final.groups]
     assert groups == ["front", "right", "back", "left"]
     # UVs: the panels' own coordinates, metres of the pattern (the skirt's panels are 0.3-0.6 m tall)
     assert len(vt) == len(v) and 0.3 < np.ptp(np.array(vt)[:, 1]) < 0.8
@@ -146,7 +134,7 @@ def test_drape_sews_a_pattern_and_writes_it_with_its_panels(skirt_drape):
     regions = [r["region"] for r in report["fit"]]
     assert regions.count("waistband") == 1 and len(regions) == len(set(regions)), regions
     # no pins: the seams and the body hold it up; it hangs from the hips, no higher than it started
-    start, _, _, _ = read_obj(out / "frame_0000.obj")
+    start = read_mesh(out / "frame_0000.obj").verts
     assert v[:, 1].max() <= start[:, 1].max() + 0.01
 
 

@@ -23,12 +23,13 @@ bounds their stiffness (Gershgorin's bound: ``2 w`` a vertex for a spring, ``k |
 Contacts (soft in the iterations, exact after them): every free vertex has a constant weight ``w_c`` in ``A``;
 its target is the iterate itself, moved by the mean push its contact half-spaces ask for (the contact points'
 pushes spread over their vertices as :mod:`.contact_solve` spreads them), with the slip along the body since the
-step began held back by Coulomb friction (:func:`contact_friction`, at most ``friction`` times the normal force). A constant weight keeps the
-factor fixed; the push is what the cloth's elements feel of the body during the step, so a cloth pulled tight
-over it is not projected against its own elements after every solve (that locked the stretch at 27 % in a
-prototype). What holds the cloth out is the contact forces (:func:`contact_forces`, Uzawa's method): normal only,
-so they do not hold the cloth where it lies as a strong weight would. An exact projection of the contact points
-after the iterations (``PDSettings.contact_sweeps``) is off: it and the forces undid each other in a 2-frame cycle.
+step began held back by Coulomb friction (:func:`contact_friction`, at most ``friction`` times the normal force).
+A constant weight keeps the factor fixed; the push is what the cloth's elements feel of the body during the step,
+so a cloth pulled tight over it is not projected against its own elements after every solve (that locked the
+stretch at 27 % in a prototype). What holds the cloth out is the contact forces (:func:`contact_forces`, Uzawa's
+method): normal only, so they do not hold the cloth where it lies as a strong weight would. An exact projection
+of the contact points after the iterations (``PDSettings.contact_sweeps``) is off: it and the forces undid each
+other in a 2-frame cycle.
 
 Pinned vertices are rows of the identity in ``A`` (their position given), and their couplings to free vertices
 move to ``b``: ``b_i += w_ip x_p`` (``pin_ptr``, ``pin_nbr``, ``pin_w`` in CSR form over the free vertices).
