@@ -200,9 +200,9 @@ def prepare_pattern_drape(pattern, body, model, material="cotton", spacing=DEFAU
     ground = ground_height(body.surface, st.contact.skin) if st.ground else None
     info = dict(placement=dict(method=dict(placement.method), pushed=dict(placement.pushed)),
                 transfer=dict(identity=True, method="none"), rest="pattern", made_on=None, ground_y_m=ground,
-                pattern=dict(source=str(pattern.source), panels=len(pattern.panels), stitches=len(pattern.stitches),
-                             seam_pairs=int(seams.shape[0]), spacing_mm=round(1000.0 * spacing, 3),
-                             frame=pattern.frame),
+                pattern=dict(source=str(pattern.source), panel_count=len(pattern.panels),
+                             stitches=len(pattern.stitches), seam_pairs=int(seams.shape[0]),
+                             spacing_mm=round(1000.0 * spacing, 3), frame=pattern.frame),
                 setup_time_s=time.perf_counter() - t0)
     pins = Pins(np.zeros(0, np.int64), np.zeros((0, 3)), dict(mode="none", count=0, dropped_inside=0,
                                                                 released_stretched=0, refitted_groups=0,

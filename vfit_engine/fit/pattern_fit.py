@@ -158,14 +158,14 @@ def block_lines(block, fit_rows=(), shown=SEAMS_SHOWN):
         out.append(f"  {s['seam']}: gap max {s['gap_max_mm']:.2f} mm, mean {s['gap_mean_mm']:.2f} mm; line stretch "
                    f"p99 {s['stretch_p99_pct']:.1f} %, max {s['stretch_max_pct']:.1f} %"
                    + ("  PULLED OPEN" if s["pulled_open"] else ""))
-    out.append("panels (yarn strain against the flat pattern; share of the panel's area on the body):")
+    out.append("panels (yarn strain against the flat pattern, %; share of the panel's area on the body, %):")
     for p in block["panels"]:
         out.append(f"  {p['panel']}: strain p50 {p['strain_p50_pct']:.1f} %, p99 {p['strain_p99_pct']:.1f} %, "
                    f"max {p['strain_max_pct']:.1f} %; on the body {p['contact_pct']:.0f} %")
     ease = {p["panel"]: {r["region"]: r["ease_cm"] for r in p["regions"]} for p in block["panels"]}
     rows = [r for r in fit_rows if r.get("panels") and r.get("ease_cm") is not None]
     if rows:
-        out.append("panels round each region (its ease shared by their part of the garment's line there):")
+        out.append("panels round each region (its ease, cm, shared by their % of the garment's line there):")
     for r in rows:
         out.append(f"  {r['region']}: " + ", ".join(
             f"{p['panel']} {ease[p['panel']][r['region']]:+.1f} cm ({p['loop_share_pct']:.0f} %)" for p in r["panels"]))

@@ -423,7 +423,7 @@ class FitTable:
             row["garment_made_cm"] = round(100.0 * girth / ratio, 2)
             row["estimated"] = name in self.estimated
             if setup.pattern is not None:  # the panels the tape's line crosses (a pattern's region by panel)
-                row["panels"] = setup.pattern.loop_panels(steps[2], steps[0], steps[1]) if steps else []
+                row["panels"] = setup.pattern.loop_panels(steps[2], steps[0], steps[1]) if steps is not None else []
             out.append(row)
         # a girth the customer gave has its row, also where the garment does not go round it
         have = {r["region"] for r in out}
