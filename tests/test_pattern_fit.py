@@ -140,3 +140,29 @@ def test_loop_panels_orders_by_share():
     rows = labels.loop_panels([0, 1, 2], np.array([0.1, 0.1, 0.3]), np.array([0.1, 0.1, 0.25]))
     assert [r["panel"] for r in rows] == ["b", "a"]
     assert rows[0]["loop_share_pct"] == 60.0 and rows[0]["loop_made_cm"] == 25.0 and rows[1]["loop_draped_cm"] == 20.0
+
+
+def test_a_tubes_line_round_a_cylinder_is_shared_by_its_two_halves():
+    """loop_steps + PatternLabels.loop_panels: a 64-sided tube (radius 10 cm) cut at mid-height, its vertices
+    on x >= 0 one panel, the rest another: each half of the line (the inscribed polygon's perimeter
+    64 * 2 r sin(pi / 64)), every step as made its draped length / 1.04 (the rest shape is the tube shrunk 4 %)."""
+    from test_fit import tube as quad_tube
+
+    from vfit_engine.fit.table import _Plane, loop_steps
+    from vfit_engine.io.meshdata import mesh_from_faces
+
+    verts, faces = quad_tube(0.10, 64, 5, 0.4, y0=-0.2)
+    tris = mesh_from_faces(verts, faces).triangles()
+    plane = _Plane((0.0, 0.01, 0.0), (0.0, 1.0, 0.0))
+    own = 0.08 * np.column_stack([np.cos(np.linspace(0, 2 * np.pi, 64, endpoint=False)),
+                                  np.sin(np.linspace(0, 2 * np.pi, 64, endpoint=False))])
+    draped, made, vertex = loop_steps(tris, verts / (1 + STRETCH), verts, plane, own)
+    assert draped.sum() == pytest.approx(64 * 2 * 0.10 * np.sin(np.pi / 64), rel=1e-9)
+    np.testing.assert_allclose(made, draped / (1 + STRETCH), rtol=1e-9)
+    half = np.where(verts[:, 0] >= -1e-12, 0, 1)
+    labels = PatternLabels(("right", "left"), (), np.zeros(0, np.int64), half)
+    rows = labels.loop_panels(vertex, draped, made)
+    assert {r["panel"] for r in rows} == {"right", "left"}
+    for r in rows:  # 32 of the 64 steps each, give or take the step at each end of a half
+        assert r["loop_share_pct"] == pytest.approx(50.0, abs=100 / 64 + 1e-6)
+        assert r["loop_made_cm"] == pytest.approx(r["loop_draped_cm"] / (1 + STRETCH), abs=0.011)
