@@ -116,6 +116,12 @@ def test_the_block_its_worst_and_its_lines(tube):
     assert f"front:side <-> back:1: gap max {gap:.2f} mm" in lines[1] and "PULLED OPEN" in lines[1]
     assert all(("mm" in ln or "%" in ln) for ln in lines)  # a unit in every line
     assert pattern_block(SimpleNamespace(pattern=None), pos, {}, []) is None  # a garment mesh has none
+    # the panels round a region, by their share of its line; a sliver under 5 % counted, not named
+    fit_rows = [dict(region="hips", ease_cm=10.0, panels=[
+        dict(panel="front", loop_share_pct=97.0, loop_draped_cm=97.0, loop_made_cm=95.0),
+        dict(panel="back", loop_share_pct=3.0, loop_draped_cm=3.0, loop_made_cm=3.0)])]
+    block = pattern_block(setup, pos, dict(contact=np.zeros(len(pos))), fit_rows)
+    assert block_lines(block, fit_rows)[-1] == "  hips: front +9.7 cm (97 %) and 1 more under 5 %"
 
 
 def test_an_opening_is_shared_by_its_panels_as_cut(tube):

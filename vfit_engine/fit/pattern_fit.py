@@ -36,6 +36,9 @@ from vfit_engine.drape.metrics import MIN_EDGE, yarn_strain
 SEAM_OPEN_MM = 2.0
 #: Seams printed by ``vfit drape PATTERN`` (the worst; the report lists every one).
 SEAMS_SHOWN = 5
+#: Panels with a smaller share (%) of a region's line are counted, not named, in the printed lines (a sleeve's
+#: edge the bust's plane grazes); the report names every one.
+SHARE_SHOWN_PCT = 5.0
 
 
 def _pct(x):
@@ -167,6 +170,9 @@ def block_lines(block, fit_rows=(), shown=SEAMS_SHOWN):
     if rows:
         out.append("panels round each region (its ease, cm, shared by their % of the garment's line there):")
     for r in rows:
+        big = [p for p in r["panels"] if p["loop_share_pct"] >= SHARE_SHOWN_PCT]
+        rest = len(r["panels"]) - len(big)
         out.append(f"  {r['region']}: " + ", ".join(
-            f"{p['panel']} {ease[p['panel']][r['region']]:+.1f} cm ({p['loop_share_pct']:.0f} %)" for p in r["panels"]))
+            f"{p['panel']} {ease[p['panel']][r['region']]:+.1f} cm ({p['loop_share_pct']:.0f} %)" for p in big)
+            + (f" and {rest} more under {SHARE_SHOWN_PCT:g} %{' each' if rest > 1 else ''}" if rest else ""))
     return out
