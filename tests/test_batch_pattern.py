@@ -33,7 +33,8 @@ def pieces(skirt_dir):
 
 def test_a_pattern_entry_carries_its_seams_and_spacing_into_its_task(pieces):
     job = load_job(write_job(pieces, "garments:\n  - skirt.obj\n  - {path: pieces.dxf, seams: pieces.seams.json, "
-                                     "spacing: 40}\nbodies: [{gender: female}]\n"))
+                                     "spacing: 40}\nbodies: [{gender: female}]\n"
+                                     "drape: {collider: mesh, pin: auto}\n"))  # mesh options at their defaults
     mesh, pattern = job.tasks
     assert (mesh.seams, mesh.spacing_mm) == (None, None) and mesh.payload()["spacing_m"] is None
     assert pattern.seams == str((pieces / "pieces.seams.json").resolve()) and pattern.spacing_mm == 40.0
@@ -41,7 +42,8 @@ def test_a_pattern_entry_carries_its_seams_and_spacing_into_its_task(pieces):
     assert p["seams"] == pattern.seams and p["spacing_m"] == pytest.approx(0.04)
     # the id follows the spacing and the sidecar's bytes; the mesh's does not change with them
     again = load_job(write_job(pieces, "garments:\n  - skirt.obj\n  - {path: pieces.dxf, seams: pieces.seams.json, "
-                                       "spacing: 30}\nbodies: [{gender: female}]\n"))
+                                       "spacing: 30}\nbodies: [{gender: female}]\n"
+                                       "drape: {collider: mesh, pin: auto}\n"))
     assert again.tasks[0].id == mesh.id and again.tasks[1].id != pattern.id
     (pieces / "pieces.seams.json").write_text('{"seams": [], "note": 1}')
     edited = load_job(write_job(pieces, "garments:\n  - {path: pieces.dxf, seams: pieces.seams.json, spacing: 40}\n"

@@ -17,7 +17,7 @@ A job file, JSON or YAML (paths relative to the job file)::
 The tasks are garments x sizes x bodies (a garment without ``sizes`` is draped as given). A sewing pattern is
 sewn and draped as ``vfit drape PATTERN`` does (:func:`vfit_engine.drape.sew.prepare_pattern_drape`); it takes
 no ``sizes`` or ``units`` (its file says them), and the job's garment-mesh drape options (``collider``, ``rest``,
-``transfer``, ``pin``) do not go with it. A task's id is a hash of what decides its result: the bytes of
+``transfer``, ``pin``) other than their defaults do not go with it. A task's id is a hash of what decides its result: the bytes of
 the garment file (and of its ``.mhclo``, and of a material or body file, and a pattern's seams sidecar), the
 units, material, size, a pattern's spacing, the body's measurements and name, and the drape options. So a
 re-run of the same job skips what is done, an edited garment runs again, and moving the job's folder changes
@@ -61,7 +61,7 @@ GARMENT_KEYS = ("path", "material", "sizes", "units", "seams", "spacing")
 DRAPE_KEYS = ("frames", "collider", "rest", "transfer", "pin")
 #: Keys of a garment entry only a sewing pattern takes, and drape options only a garment mesh takes.
 PATTERN_KEYS = ("seams", "spacing")
-MESH_DRAPE_KEYS = ("collider", "rest", "transfer", "pin")
+MESH_DRAPE_KEYS = dict(collider="mesh", rest="garment", transfer="auto", pin="auto")  # and their defaults
 #: A pattern's cloth spacing (mm) as ``vfit drape --spacing`` takes it.
 SPACING_MM = (3.0, 100.0)
 JOB_KEYS = ("garments", "bodies", "drape")
@@ -177,7 +177,7 @@ def load_job(path):
     garments = _garments(doc.get("garments"), base, path)
     bodies = _bodies(doc.get("bodies"), base, path)
     drape = _drape_options(doc.get("drape") or {}, path)
-    mesh_only = [k for k in MESH_DRAPE_KEYS if k in drape]
+    mesh_only = [k for k, default in MESH_DRAPE_KEYS.items() if drape.get(k, default) != default]
     pattern = next((i for i, g in enumerate(garments) if g.get("pattern")), None)
     if mesh_only and pattern is not None:
         raise InputError(f"{path}: drape: {mesh_only[0]!r} is for a garment mesh, and garments[{pattern}] is a "
