@@ -127,7 +127,10 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
     A pattern's panels are meshed, placed round the body and sewn there, then
     the garment drapes as any garment does; its strain is against the flat
     pattern, and final.obj carries the panels' coordinates as UVs (m) and a
-    group per panel.
+    group per panel. Its report adds, per seam, the gap left between its sewn
+    points (mm; pulled open over 2 mm) and its line's stretch (%), and per
+    panel its strain (%), its area on the body (%) and its share of each
+    region's ease (cm); the 5 worst seams and every panel are printed.
 
     The garment keeps its own size: on a bigger body it is stretched, on a
     smaller one it hangs loose, and the report says where and by how much
