@@ -72,6 +72,8 @@ def batch(ctx, job_file, outdir, workers, scheduler, retries, keep_meshes, retry
       garments:
         - suits/male_casualsuit02.obj
         - {path: shirt.obj, material: jersey, sizes: [S, M, L]}
+        - {path: tee.json, spacing: 25}       # a sewing pattern (GarmentCode JSON)
+        - {path: pieces.dxf, seams: pieces.seams.json}   # DXF-AAMA + seams
       bodies:
         - {name: anna, gender: female, height: 168, waist: 72, hips: 98}
         - {gender: male}
@@ -79,7 +81,9 @@ def batch(ctx, job_file, outdir, workers, scheduler, retries, keep_meshes, retry
       drape: {frames: 600, collider: mesh}      # optional, for every task
 
     The tasks are garments x sizes x bodies; a garment with sizes is graded
-    to each (as vfit size does) and draped at that size. Each finished task
+    to each (as vfit size does) and draped at that size. A sewing pattern is
+    sewn and draped as vfit drape PATTERN does (no sizes; its row adds its
+    worst seam's gap, mm, and worst panel's strain p99, %). Each finished task
     is a row of OUTDIR/results.parquet (inputs, status ok / not_converged /
     failed and why, surface penetration, yarn strain, ease and verdict per
     body region, timings, worker), written as it finishes: a re-run of the

@@ -127,7 +127,10 @@ def drape(ctx, garment, body_path, material, rest, transfer, collider, pin, unit
     A pattern's panels are meshed, placed round the body and sewn there, then
     the garment drapes as any garment does; its strain is against the flat
     pattern, and final.obj carries the panels' coordinates as UVs (m) and a
-    group per panel.
+    group per panel. Its report adds, per seam, the gap left between its sewn
+    points (mm; pulled open over 2 mm) and its line's stretch (%), and per
+    panel its strain (%), its area on the body (%) and its share of each
+    region's ease (cm); the 5 worst seams and every panel are printed.
 
     The garment keeps its own size: on a bigger body it is stretched, on a
     smaller one it hangs loose, and the report says where and by how much
@@ -447,6 +450,7 @@ def _finish(setup, result, model, o, written, context, elapsed):
     from vfit_engine.drape import drape_report
     from vfit_engine.fit.maps import MAP_UNITS, fit_maps
     from vfit_engine.fit.outputs import write_fit_ply, write_preview, write_scene
+    from vfit_engine.fit.pattern_fit import pattern_block
     from vfit_engine.fit.table import FitTable
     from vfit_engine.fit.verdict import summary_line, too_tight
     from vfit_engine.io.mesh import write_mesh
@@ -480,6 +484,9 @@ def _finish(setup, result, model, o, written, context, elapsed):
                too_tight=too_tight(rows, setup.material.wearable_stretch),
                fit_units=dict(girth="cm", ease="cm", strain="fraction", pressure="kPa"),
                fit_maps=dict(file="fit.ply", properties=MAP_UNITS))
+    block = pattern_block(setup, result.pos, maps, rows)
+    if block is not None:  # a sewn pattern: its seams and panels beside what set it up
+        context = {**context, "pattern": {**context["pattern"], **block}}
     return drape_report(setup, result, outputs=written, total_time_s=elapsed, **fit, **context)
 
 
@@ -504,7 +511,10 @@ def _write_garment(path, setup, verts, context):
 
 
 def _summary(g, setup, result, report):
-    """The lines a user reads: settled or not, skin through the cloth, strain, shear, tight openings."""
+    """The lines a user reads: settled or not, skin through the cloth, strain, shear, the fit table, a pattern's
+    seams and panels, tight openings."""
+    from vfit_engine.fit.pattern_fit import block_lines
+
     m = result.metrics
     click.echo(f"vfit drape: {g.mesh.n_verts} vertices, {result.frames} frames ({result.steps} steps, "
                f"{result.sim_time:.2f} s simulated) in {result.wall_time:.2f} s; "
@@ -517,6 +527,8 @@ def _summary(g, setup, result, report):
                f"max {m['shear_max_deg']:.1f} deg" + ("  (graded to this body: --rest graded)"
                                                       if setup.info["rest"] == "graded" else ""))
     _fit_table(report["fit"], setup.material)
+    if (report.get("pattern") or {}).get("seams") is not None:
+        click.echo("\n".join("  " + line for line in block_lines(report["pattern"], report["fit"])))
     for t in report["too_tight"]:
         need = t.get("required_strain") or 0.0
         click.echo(f"  too tight to wear at the {t['region']}: the cloth round it is stretched "

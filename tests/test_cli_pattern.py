@@ -127,7 +127,7 @@ def test_drape_sews_a_pattern_and_writes_it_with_its_panels(skirt_drape):
     gap = np.linalg.norm(v[pairs[:, 0]] - v[pairs[:, 1]], axis=1)
     assert gap.max() < 0.002  # sewn: every seam within 2 mm
     report = json.loads((out / "report.json").read_text())
-    assert report["pattern"]["seam_pairs"] == len(pairs) and report["pattern"]["panels"] == 4
+    assert report["pattern"]["seam_pairs"] == len(pairs) and report["pattern"]["panel_count"] == 4
     assert report["surface_inside_percent"] <= 0.5 and report["surface_deeper_than_2mm"] == 0  # the surface bars
     assert report["strain_reference"].startswith("the flat pattern")
     # the fit table's openings are the sewn skirt's (its waist), not its four panels' outlines
@@ -151,3 +151,37 @@ def test_drape_refuses_pattern_options_on_a_mesh(tmp_path):
     skirt = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
     r = CliRunner().invoke(cli, ["drape", str(skirt), "-o", str(tmp_path / "o"), "--spacing", "15"])
     assert r.exit_code == 2 and "--spacing" in r.output and len(lines(r.output)) == 1
+
+
+@needs_shared
+def test_drape_reports_every_seam_and_panel_and_prints_the_worst(skirt_drape):
+    """report.json's pattern block: a row per stitch (closed: within the 2 mm bar) and per panel, the fit table's
+    regions naming their panels; the printed lines: the 5 worst seams and every panel, each with its unit."""
+    from vfit_engine.pattern.load import load
+
+    out, r = skirt_drape
+    pattern = load(SKIRT)[0]
+    block = json.loads((out / "report.json").read_text())["pattern"]
+    fit = json.loads((out / "report.json").read_text())["fit"]
+    assert len(block["seams"]) == len(pattern.stitches) == 8 and block["seams_pulled_open"] == 0
+    assert all(s["gap_max_mm"] < block["seam_open_bar_mm"] == 2.0 for s in block["seams"])
+    assert all(0 <= s["gap_mean_mm"] <= s["gap_max_mm"] and s["stretch_p99_pct"] <= s["stretch_max_pct"] + 1e-9
+               for s in block["seams"])
+    assert [p["panel"] for p in block["panels"]] == list(pattern.panels)
+    for p in block["panels"]:
+        assert p["strain_p50_pct"] <= p["strain_p99_pct"] <= p["strain_max_pct"] + 1e-9
+        assert 0.0 <= p["contact_pct"] <= 100.0 and p["area_m2"] > 0.05
+    hips = next(row for row in fit if row["region"] == "hips")
+    assert {p["panel"] for p in hips["panels"]} == set(pattern.panels)  # a skirt's four panels go round the hips
+    assert sum(p["loop_share_pct"] for p in hips["panels"]) == pytest.approx(100.0, abs=0.05)
+    # the panels' ease at the hips adds up to the region's
+    ease = [x["ease_cm"] for p in block["panels"] for x in p["regions"] if x["region"] == "hips"]
+    assert sum(ease) == pytest.approx(hips["ease_cm"], abs=0.03)
+    text = r.output
+    assert "seams (0 of 8 pulled open, gap over 2 mm), the 5 worst:" in text
+    seam_lines = [ln for ln in text.splitlines() if "<->" in ln]
+    assert len(seam_lines) == 5 and all("mm" in ln and "%" in ln for ln in seam_lines)
+    assert seam_lines[0].strip().startswith(block["seams"][0]["seam"])
+    for name in pattern.panels:
+        assert any(ln.strip().startswith(f"{name}: strain p50") and ln.endswith("%") for ln in text.splitlines())
+    assert any(ln.strip().startswith("hips: ") and " cm (" in ln for ln in text.splitlines())

@@ -5,6 +5,8 @@ A job file, JSON or YAML (paths relative to the job file)::
     garments:                           # garment files, or dicts with options
       - outfits/male_casualsuit02.obj
       - {path: shirt.obj, material: jersey, sizes: [S, M, L], units: dm}
+      - {path: shirt.json, spacing: 25}  # a sewing pattern (GarmentCode JSON; cloth edge length in mm)
+      - {path: pieces.dxf, seams: pieces.seams.json}   # DXF-AAMA with its seams sidecar
     bodies:                             # measurements as `vfit morph` takes them (cm, kg), or CSV files
       - {name: anna, gender: female, height: 168, bust: 90, waist: 72, hips: 98}
       - {gender: male}                  # the average man
@@ -12,13 +14,15 @@ A job file, JSON or YAML (paths relative to the job file)::
       - customers.csv                   # columns: name, gender, height, weight, bust, waist, hips, ...
     drape: {frames: 600, collider: mesh, rest: garment}   # optional, for every task
 
-The tasks are garments x sizes x bodies (a garment without ``sizes`` is draped as given). A task's id
-is a hash of what decides its result: the bytes of the garment file (and of its ``.mhclo``, and of a
-material or body file), the units, material, size, the body's measurements and name, and the drape
-options. So a re-run of the same job skips what is done, an edited garment runs again, and moving the
-job's folder changes nothing. Structure errors (a missing file, an unknown key, a girth of -3 cm) are
-found here, before any drape, naming the file and the element; a garment file that is there but
-broken fails its own tasks only.
+The tasks are garments x sizes x bodies (a garment without ``sizes`` is draped as given). A sewing pattern is
+sewn and draped as ``vfit drape PATTERN`` does (:func:`vfit_engine.drape.sew.prepare_pattern_drape`); it takes
+no ``sizes`` or ``units`` (its file says them), and the job's garment-mesh drape options (``collider``, ``rest``,
+``transfer``, ``pin``) other than their defaults do not go with it. A task's id is a hash of what decides its result: the bytes of
+the garment file (and of its ``.mhclo``, and of a material or body file, and a pattern's seams sidecar), the
+units, material, size, a pattern's spacing, the body's measurements and name, and the drape options. So a
+re-run of the same job skips what is done, an edited garment runs again, and moving the job's folder changes
+nothing. Structure errors (a missing file, an unknown key, a girth of -3 cm) are found here, before any
+drape, naming the file and the element; a garment file that is there but broken fails its own tasks only.
 """
 from __future__ import annotations
 
@@ -38,6 +42,7 @@ from vfit_engine.drape.setup import REST_MODES
 from vfit_engine.errors import InputError, VfitError
 from vfit_engine.garment.mhclo import parse_mhclo
 from vfit_engine.garment.transfer import METHODS
+from vfit_engine.pattern.load import is_pattern
 from vfit_engine.sim.materials import resolve_material
 from vfit_engine.sizes import parse_sizes
 from vfit_engine.units import LENGTH_UNITS
@@ -52,8 +57,13 @@ NAME_SYNONYMS = ("id", "customer")
 #: Other names of a measurement: a man's chest is the girth a woman's bust is (``vfit morph --chest``).
 GIRTH_SYNONYMS = {"chest": "bust"}
 #: Keys of a garment entry and of the job's ``drape`` options.
-GARMENT_KEYS = ("path", "material", "sizes", "units")
+GARMENT_KEYS = ("path", "material", "sizes", "units", "seams", "spacing")
 DRAPE_KEYS = ("frames", "collider", "rest", "transfer", "pin")
+#: Keys of a garment entry only a sewing pattern takes, and drape options only a garment mesh takes.
+PATTERN_KEYS = ("seams", "spacing")
+MESH_DRAPE_KEYS = dict(collider="mesh", rest="garment", transfer="auto", pin="auto")  # and their defaults
+#: A pattern's cloth spacing (mm) as ``vfit drape --spacing`` takes it.
+SPACING_MM = (3.0, 100.0)
 JOB_KEYS = ("garments", "bodies", "drape")
 
 
@@ -74,6 +84,8 @@ class Task:
     body: dict
     gender: str | float
     drape: dict
+    seams: str | None = None
+    spacing_mm: float | None = None
 
     @property
     def garment_name(self):
@@ -105,7 +117,8 @@ class Task:
         return dict(id=self.id, garment=self.garment, units=self.units, material=self.material, size=self.size,
                     body=dict(key=self.body_key(), path=b.get("body"), targets=targets, weight_kg=b.get("weight"),
                               gender=self.gender, definition=b.get("definition", "iso")),
-                    drape=dict(self.drape), keep_meshes=bool(keep_meshes))
+                    drape=dict(self.drape), keep_meshes=bool(keep_meshes), seams=self.seams,
+                    spacing_m=None if self.spacing_mm is None else self.spacing_mm / 1000.0)
 
 
 @dataclasses.dataclass
@@ -164,6 +177,12 @@ def load_job(path):
     garments = _garments(doc.get("garments"), base, path)
     bodies = _bodies(doc.get("bodies"), base, path)
     drape = _drape_options(doc.get("drape") or {}, path)
+    mesh_only = [k for k, default in MESH_DRAPE_KEYS.items() if drape.get(k, default) != default]
+    pattern = next((i for i, g in enumerate(garments) if g.get("pattern")), None)
+    if mesh_only and pattern is not None:
+        raise InputError(f"{path}: drape: {mesh_only[0]!r} is for a garment mesh, and garments[{pattern}] is a "
+                         "sewing pattern (sewn round the body, its seams hold it); drape patterns in a job of their "
+                         "own")
     return make_job(str(path), garments, bodies, drape)
 
 
@@ -177,13 +196,16 @@ def make_job(path, garments, bodies, drape):
                 body = {k: (_cached_digest(v, digests) if k == "body" else v) for k, v in b.items()}
                 ident = dict(garment=key, units=g["units"], material=g["material_key"], size=size, body=body,
                              drape=drape)
+                if g.get("pattern"):  # a mesh's id stays what it was before patterns were taken
+                    ident.update(spacing_mm=g["spacing_mm"])
                 tid = _digest(ident)[:16]
                 if tid in seen:
                     warnings.append(f"{Path(g['path']).name} on {b} is listed twice; draped once")
                     continue
                 seen.add(tid)
                 gender = b.get("gender", g["gender"] or "female")
-                tasks.append(Task(tid, g["path"], g["units"], g["material"], size, dict(b), gender, dict(drape)))
+                tasks.append(Task(tid, g["path"], g["units"], g["material"], size, dict(b), gender, dict(drape),
+                                  g.get("seams"), g.get("spacing_mm")))
     return Job(path, tasks, len(garments), len(bodies), warnings)
 
 
@@ -194,9 +216,11 @@ def _cached_digest(path, digests):
 
 
 def _garment_digest(g, digests):
-    """The garment's content hash: its file and the .mhclo binding beside it."""
+    """The garment's content hash: its file and the .mhclo binding beside it, or a pattern's seams sidecar."""
     mhclo = Path(g["path"]).with_suffix(".mhclo")
     parts = [_cached_digest(g["path"], digests)] + ([_cached_digest(str(mhclo), digests)] if mhclo.is_file() else [])
+    if g.get("seams"):
+        parts.append(_cached_digest(g["seams"], digests))
     return "+".join(parts)
 
 
@@ -233,9 +257,36 @@ def _garments(entries, base, path):
             except InputError as exc:
                 raise InputError(f"{where}: {exc}") from None
         material, material_key = _material(e.get("material", "cotton"), base, where)
-        out.append(dict(path=str(file), units=units, sizes=sizes, material=material, material_key=material_key,
-                        gender=_tag_gender(file)))
+        g = dict(path=str(file), units=units, sizes=sizes, material=material, material_key=material_key,
+                 gender=_tag_gender(file))
+        if is_pattern(file):
+            g.update(_pattern_entry(e, base, where))
+        elif any(k in e for k in PATTERN_KEYS):
+            raise InputError(f"{where}: {next(k for k in PATTERN_KEYS if k in e)!r} is for a sewing pattern "
+                             f"(.json, .dxf), not a garment mesh")
+        out.append(g)
     return out
+
+
+def _pattern_entry(e, base, where):
+    """A sewing pattern's own keys (its seams sidecar, absolute; its spacing, mm), checked."""
+    for key in ("sizes", "units"):
+        if e.get(key) not in (None, "auto"):
+            raise InputError(f"{where}: {key!r} is for a garment mesh; a pattern's file gives its units, and "
+                             "vfit batch does not grade a pattern (vfit size does)")
+    seams = None
+    if e.get("seams") is not None:
+        file = (base / str(e["seams"])).resolve()
+        if not file.is_file():
+            raise InputError(f"{where}: seams file not found: {file}")
+        seams = str(file)
+    spacing = e.get("spacing")
+    if spacing is not None:
+        lo, hi = SPACING_MM
+        if isinstance(spacing, bool) or not isinstance(spacing, (int, float)) or not lo <= spacing <= hi:
+            raise InputError(f"{where}: spacing {spacing!r}; give the cloth's edge length in mm, {lo:g}-{hi:g}")
+        spacing = float(spacing)
+    return dict(pattern=True, seams=seams, spacing_mm=spacing)
 
 
 def _tag_gender(file):

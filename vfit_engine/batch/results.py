@@ -18,7 +18,9 @@ parts left by a crash during a merge).
 The columns are :data:`SCHEMA`: the task's inputs, its status and error, the drape's figures (surface
 penetration, yarn strain, shear), the fit table (``fit``: a list of one struct per body region, as
 ``report.json``'s ``fit``; and flat columns for the key regions: ``bust_*`` is the bust of a woman and the
-chest of a man), the timings (s) and the worker.
+chest of a man), a sewing pattern's worst seam and panel (``worst_seam`` and its largest gap between sewn
+points, ``worst_seam_gap_mm``; ``worst_panel`` and its yarn strain p99, ``worst_panel_p99_pct``; empty for a
+garment mesh: :func:`vfit_engine.fit.pattern_fit.worst`), the timings (s) and the worker.
 """
 from __future__ import annotations
 
@@ -49,7 +51,8 @@ SCHEMA = pa.schema(
      ("body_key", _S), ("body_spec", _S), ("gender", _S), ("status", _S), ("error", _S), ("frames", pa.int32()),
      ("surface_inside_percent", _F), ("surface_max_depth_mm", _F), ("vertex_inside_percent", _F),
      ("max_strain", _F), ("p99_strain", _F), ("shear_p99_deg", _F), ("shear_max_deg", _F),
-     ("tight_openings", pa.int32()), ("fit_summary", _S)]
+     ("tight_openings", pa.int32()), ("fit_summary", _S),
+     ("worst_seam", _S), ("worst_seam_gap_mm", _F), ("worst_panel", _S), ("worst_panel_p99_pct", _F)]
     + [(f"{r}_{what}", t) for r in KEY_REGIONS
        for what, t in (("ease_cm", _F), ("strain", _F), ("verdict", _S), ("estimated", pa.bool_()))]
     + [("fit", pa.list_(_FIT_ROW))]
@@ -61,7 +64,7 @@ MERGE_EVERY = 256
 #: Units of the columns (the README's table of results.parquet says the same).
 UNITS = dict(surface_inside_percent="%", surface_max_depth_mm="mm", vertex_inside_percent="%",
              max_strain="fraction", p99_strain="fraction", shear_p99_deg="deg", shear_max_deg="deg",
-             ease_cm="cm", girth="cm", times="s")
+             ease_cm="cm", girth="cm", times="s", worst_seam_gap_mm="mm", worst_panel_p99_pct="%")
 
 
 def flat_row(row, task):

@@ -7,7 +7,10 @@
 The drape is ``vfit drape``'s path (:func:`vfit_engine.drape.prepare_drape`, :func:`run_drape`, the
 fit table of :mod:`vfit_engine.fit.table`) without its files; a task with a size first grades the
 garment to that size as ``vfit size`` does (:func:`vfit_engine.sizes.grade`, the size body at the
-customer's height). On a cluster the body is a task of its own (:func:`build_body`), built once for
+customer's height); a task whose garment is a sewing pattern sews and drapes it as ``vfit drape PATTERN``
+does (:func:`vfit_engine.drape.sew.prepare_pattern_drape` on the projective solver) and its row gets the
+pattern's columns (the largest seam gap and panel strain, :func:`vfit_engine.fit.pattern_fit.worst`). On a
+cluster the body is a task of its own (:func:`build_body`), built once for
 all the drapes on it and handed to them by Dask; run alone, a task builds it. The worker keeps the body
 model, the size bodies and the fit tables (:mod:`vfit_engine.process_cache`).
 
@@ -30,13 +33,18 @@ from vfit_engine.body.bodyio import write_body
 from vfit_engine.body.measure import stature
 from vfit_engine.body.resolve import resolve_body
 from vfit_engine.drape import DrapeDiverged, DrapeSettings, prepare_drape, run_drape
+from vfit_engine.drape.settings import projective
 from vfit_engine.drape.setup import garment_gender
+from vfit_engine.drape.sew import prepare_pattern_drape
 from vfit_engine.errors import InputError, VfitError
 from vfit_engine.fit.maps import fit_maps
 from vfit_engine.fit.outputs import write_fit_ply
+from vfit_engine.fit.pattern_fit import pattern_block, worst
 from vfit_engine.fit.verdict import summary_line
 from vfit_engine.garment.garment import load_garment
 from vfit_engine.io.mesh import write_mesh
+from vfit_engine.pattern.load import is_pattern, load
+from vfit_engine.pattern.mesh import DEFAULT_SPACING
 from vfit_engine.sizes import grade, size_body, size_gender
 
 #: Statuses of a task: settled, not settled within the frame limit (judged on the last frame), failed.
@@ -120,24 +128,15 @@ def _drape(job, built, row, lap):
     lap("start")
     if error is not None:
         raise InputError(error)
-    garment = load_garment(job["garment"], units=job["units"])
-    gender = job["body"]["gender"]
-    row["gender"] = str(gender)
-    reference = None
-    if job.get("size"):
-        garment, reference = _sized(garment, model, body, garment_gender(garment) or gender, job["size"])
-        lap("grade")
-    opts = job["drape"]
-    settings = DrapeSettings() if opts.get("frames") is None else DrapeSettings(max_frames=int(opts["frames"]))
-    setup = prepare_drape(garment, body, model, reference=reference, material=job["material"],
-                          pin=opts.get("pin", "auto"), transfer=opts.get("transfer", "auto"),
-                          rest=opts.get("rest", "garment"), collider=opts.get("collider", "mesh"), settings=settings)
+    row["gender"] = str(job["body"]["gender"])
+    setup, settings = (_pattern_setup if is_pattern(job["garment"]) else _mesh_setup)(job, body, model, lap)
     lap("setup")
     result = run_drape(setup, settings)
     lap("drape")
     maps = fit_maps(setup, result.pos)
     fit = process_cache.fit_table(model, body).rows(setup, result.pos, maps)
     lap("fit")
+    row.update(worst(pattern_block(setup, result.pos, maps, fit)))
     m = result.metrics
     row.update(status="ok" if result.converged else "not_converged", frames=result.frames,
                fit=fit, fit_summary=summary_line(fit), tight_openings=sum(1 for o in setup.openings
@@ -152,6 +151,37 @@ def _drape(job, built, row, lap):
     if job.get("keep_meshes"):
         row["meshes"] = _mesh_bytes(setup, result.pos, maps, model)
         lap("meshes")
+
+
+def _settings(job, pattern=False):
+    """The drape settings of a task (its ``frames``; a pattern's on the projective solver, which sews)."""
+    frames = job["drape"].get("frames")
+    settings = DrapeSettings() if frames is None else DrapeSettings(max_frames=int(frames))
+    return projective(settings) if pattern else settings
+
+
+def _mesh_setup(job, body, model, lap):
+    """(DrapeSetup, DrapeSettings) of a garment mesh's task, graded to its size first when it has one."""
+    garment = load_garment(job["garment"], units=job["units"])
+    reference = None
+    if job.get("size"):
+        garment, reference = _sized(garment, model, body, garment_gender(garment) or job["body"]["gender"],
+                                    job["size"])
+        lap("grade")
+    opts, settings = job["drape"], _settings(job)
+    return prepare_drape(garment, body, model, reference=reference, material=job["material"],
+                         pin=opts.get("pin", "auto"), transfer=opts.get("transfer", "auto"),
+                         rest=opts.get("rest", "garment"), collider=opts.get("collider", "mesh"),
+                         settings=settings), settings
+
+
+def _pattern_setup(job, body, model, lap):
+    """(DrapeSetup, DrapeSettings) of a sewing pattern's task: read and checked (with its seams sidecar),
+    meshed, placed round the body, to be sewn (``vfit drape PATTERN``'s path)."""
+    pattern, _ = load(job["garment"], job.get("seams"))
+    settings = _settings(job, pattern=True)
+    return prepare_pattern_drape(pattern, body, model, material=job["material"],
+                                 spacing=job.get("spacing_m") or DEFAULT_SPACING, settings=settings), settings
 
 
 def _mesh_bytes(setup, pos, maps, model):

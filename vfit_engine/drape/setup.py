@@ -109,6 +109,9 @@ class DrapeSetup:
         Height (m, y) of the ground plane under the body (:func:`ground_height`), None: none.
     seams : (s, 2) int64
         A sewing pattern's vertex pairs to sew (:mod:`vfit_engine.drape.sew`); none for a garment mesh.
+    pattern : vfit_engine.drape.sew.PatternLabels or None
+        A sewing pattern's panel and seam names and which seam each of ``seams`` belongs to (the per-seam and
+        per-panel figures: :mod:`vfit_engine.fit.pattern_fit`); None for a garment mesh.
     """
 
     garment: object
@@ -129,6 +132,7 @@ class DrapeSetup:
     body_parts: np.ndarray | None = None
     ground: float | None = None
     seams: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    pattern: object = None
 
     @property
     def rest_mesh(self):

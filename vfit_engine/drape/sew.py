@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +44,82 @@ from vfit_engine.sim.materials import resolve_material
 
 #: Gap (m) between the panels laid side by side in the rest shape (they share no element: any gap would do).
 REST_GAP = 0.1
+
+
+@dataclass(frozen=True, eq=False)
+class PatternLabels:
+    """What names a sewn pattern's cloth as the pattern maker knows it (``DrapeSetup.pattern``).
+
+    Attributes
+    ----------
+    panel_names : tuple of str
+        The panels in the pattern's order (the garment's ``pieces`` index them).
+    seam_names : tuple of str
+        One per stitch of the pattern, in its order: its two edges as ``panel:edge``, the edge by its label in
+        the file when it has one, else by its index in the panel's outline (``"front:1 <-> right:5"``).
+    seam_stitch : (s,) int64
+        The stitch (index into ``seam_names``) of each row of ``DrapeSetup.seams``; a stitch's rows run along
+        its edge ``a``, one after the other.
+    vertex_panel : (n,) int64
+        The panel of every cloth vertex (index into ``panel_names``).
+    """
+
+    panel_names: tuple
+    seam_names: tuple
+    seam_stitch: np.ndarray
+    vertex_panel: np.ndarray
+
+    @classmethod
+    def of(cls, pattern, cloth, keep):
+        """The labels of ``pattern`` meshed as ``cloth`` (PatternMesh), its seam pairs ``keep`` (mask) sewn."""
+        def edge(ref):
+            label = pattern.panels[ref.panel].edges[ref.edge].label
+            return f"{ref.panel}:{label or ref.edge}"
+        return cls(tuple(cloth.panel_names), tuple(f"{edge(s.a)} <-> {edge(s.b)}" for s in pattern.stitches),
+                   np.asarray(cloth.seam_stitch, dtype=np.int64)[keep], np.asarray(cloth.vertex_panel, np.int64))
+
+    def loop_panels(self, vertex, draped, made):
+        """The panels a line round the body crosses, as many figures per panel, largest share first.
+
+        Parameters
+        ----------
+        vertex : (k,) int64
+            For each step of the line, a cloth vertex of the triangle (or edge) it crosses.
+        draped, made : (k,) float64, m
+            Each step's length draped and on the flat pattern.
+
+        Returns
+        -------
+        list of dict
+            ``panel``, ``loop_share_pct`` (its share of the line's draped length, %), ``loop_draped_cm`` and
+            ``loop_made_cm`` (its part of the line, draped and as cut, cm).
+        """
+        panel = self.vertex_panel[np.asarray(vertex, dtype=np.int64)]
+        total = float(np.sum(draped))
+        rows = []
+        for k in np.unique(panel).tolist():
+            sel = panel == k
+            d, m = float(np.sum(draped[sel])), float(np.sum(made[sel]))
+            share = 100.0 * d / total if total > 0 else 0.0
+            rows.append(dict(panel=self.panel_names[k], loop_share_pct=round(share, 2),
+                             loop_draped_cm=round(100.0 * d, 2), loop_made_cm=round(100.0 * m, 2)))
+        return sorted(rows, key=lambda r: -r["loop_share_pct"])
+
+    def opening_panels(self, loop, pos, rest, weld):
+        """:meth:`loop_panels` of an opening of the sewn garment: ``loop`` (L,) its vertices in walking order,
+        a seam's sides as one (``weld`` (n,): :func:`vfit_engine.pattern.weld.sewn_to`); ``pos`` and ``rest``
+        (n, 3) m the cloth draped and flat. Each loop edge is the cloth edge of one panel: where its ends lie on
+        two panels (one end a seam's), the end on the seam is taken on the other's panel (its sewn partner
+        there), so that its length as made is a panel's own."""
+        a = np.array(loop, dtype=np.int64)  # a copy: its seam ends are moved to their mates
+        b = np.roll(a, -1)
+        for k in np.flatnonzero(self.vertex_panel[a] != self.vertex_panel[b]).tolist():
+            for end, other in ((a, b), (b, a)):
+                mates = np.flatnonzero((weld == weld[end[k]]) & (self.vertex_panel == self.vertex_panel[other[k]]))
+                if mates.size:
+                    end[k] = mates[0]
+                    break
+        return self.loop_panels(a, np.linalg.norm(pos[b] - pos[a], axis=1), np.linalg.norm(rest[b] - rest[a], axis=1))
 
 
 def flat_layout(uv, vertex_panel, n_panels):
@@ -97,7 +174,8 @@ def prepare_pattern_drape(pattern, body, model, material="cotton", spacing=DEFAU
     Returns
     -------
     DrapeSetup
-        ``reference`` is ``body`` (a pattern is not made on another body); ``seams`` the pairs to sew.
+        ``reference`` is ``body`` (a pattern is not made on another body); ``seams`` the pairs to sew,
+        ``pattern`` their names (:class:`PatternLabels`).
     """
     t0 = time.perf_counter()
     st = settings or DrapeSettings()
@@ -117,16 +195,18 @@ def prepare_pattern_drape(pattern, body, model, material="cotton", spacing=DEFAU
         parts = skin_parts(model)
         collide = building.result()
     seams = np.asarray(cloth.seam_pairs, dtype=np.int64).reshape(-1, 2)
-    seams = seams[seams[:, 0] != seams[:, 1]]  # a dart's tip is sewn to itself: it is one vertex already
+    keep = seams[:, 0] != seams[:, 1]  # a dart's tip is sewn to itself: it is one vertex already
+    seams = seams[keep]
     ground = ground_height(body.surface, st.contact.skin) if st.ground else None
     info = dict(placement=dict(method=dict(placement.method), pushed=dict(placement.pushed)),
                 transfer=dict(identity=True, method="none"), rest="pattern", made_on=None, ground_y_m=ground,
-                pattern=dict(source=str(pattern.source), panels=len(pattern.panels), stitches=len(pattern.stitches),
-                             seam_pairs=int(seams.shape[0]), spacing_mm=round(1000.0 * spacing, 3),
-                             frame=pattern.frame),
+                pattern=dict(source=str(pattern.source), panel_count=len(pattern.panels),
+                             stitches=len(pattern.stitches), seam_pairs=int(seams.shape[0]),
+                             spacing_mm=round(1000.0 * spacing, 3), frame=pattern.frame),
                 setup_time_s=time.perf_counter() - t0)
     pins = Pins(np.zeros(0, np.int64), np.zeros((0, 3)), dict(mode="none", count=0, dropped_inside=0,
                                                                 released_stretched=0, refitted_groups=0,
                                                                 pieces=None, warnings=[]))
     return DrapeSetup(garment, np.ascontiguousarray(garment.verts), np.ascontiguousarray(start), body, body, tris,
-                      mat, pins, [], [], collide, "mesh", None, None, info, parts, ground, seams)
+                      mat, pins, [], [], collide, "mesh", None, None, info, parts, ground, seams,
+                      PatternLabels.of(pattern, cloth, keep))

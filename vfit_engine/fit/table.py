@@ -193,25 +193,18 @@ def _cut_loops(tris, heights):
     return out
 
 
-def loop_strain(tris, rest, pos, plane, own, others=(), reach=np.inf):
-    """How far the garment is stretched round a body part along its tape's line.
-
-    The garment's section in the plane (at ``pos``), its loops round the part, its open chains and their
-    points nearer the part's own body loop than its other loops, as :func:`garment_girth` keeps them: each step between two
-    kept points in a row crosses one triangle, whose rest shape (``rest``) gives that step's length as
-    made.
+def loop_steps(tris, rest, pos, plane, own, others=(), reach=np.inf):
+    """The steps of the garment's line round a body part in ``plane`` (:func:`loop_strain`).
 
     Returns
     -------
-    (stretch, ratio) or None
-        ``stretch``: draped length / rest length - 1 over the steps under tension (cloth cannot carry a
-        compression: a step shorter than made has buckled into a fold, bunched at a seam, and carries
-        nothing round the body); over all steps where none is. ``ratio``: draped / rest length over all
-        steps (the garment as made is the draped girth / ``ratio``). None where no step is kept.
+    (draped (k,), made (k,), vertex (k,)) or None
+        Each kept step's length draped (at ``pos``) and as made (``rest``), m, and a vertex of the triangle it
+        crosses (its cloth: a pattern's panel); None where no step is kept.
     """
     q = pos @ plane.rot.T
     centre = plane.centre_xz
-    draped, made = [], []
+    draped, made, vertex = [], [], []
     for loop, shut in _cut_loops(tris, q[:, 1] - plane.height):
         a, b = loop[:, 0], loop[:, 1]
         t = ((q[a, 1] - plane.height) / (q[a, 1] - q[b, 1]))[:, None]
@@ -227,9 +220,32 @@ def loop_strain(tris, rest, pos, plane, own, others=(), reach=np.inf):
         r = rest[a] + t * (rest[b] - rest[a])
         draped.append(np.linalg.norm(np.roll(xz, -1, axis=0) - xz, axis=1)[step])
         made.append(np.linalg.norm(np.roll(r, -1, axis=0) - r, axis=1)[step])
+        vertex.append(a[step])  # the step from crossing i to i + 1 runs through a triangle with edge i
     if not made or np.sum([m.sum() for m in made]) <= 0.0:
         return None
-    draped, made = np.concatenate(draped), np.concatenate(made)
+    return np.concatenate(draped), np.concatenate(made), np.concatenate(vertex)
+
+
+def loop_strain(tris, rest, pos, plane, own, others=(), reach=np.inf, steps=None):
+    """How far the garment is stretched round a body part along its tape's line.
+
+    The garment's section in the plane (at ``pos``), its loops round the part, its open chains and their
+    points nearer the part's own body loop than its other loops, as :func:`garment_girth` keeps them: each step between two
+    kept points in a row crosses one triangle, whose rest shape (``rest``) gives that step's length as
+    made (:func:`loop_steps`; ``steps``: its answer, when the caller has it).
+
+    Returns
+    -------
+    (stretch, ratio) or None
+        ``stretch``: draped length / rest length - 1 over the steps under tension (cloth cannot carry a
+        compression: a step shorter than made has buckled into a fold, bunched at a seam, and carries
+        nothing round the body); over all steps where none is. ``ratio``: draped / rest length over all
+        steps (the garment as made is the draped girth / ``ratio``). None where no step is kept.
+    """
+    steps = loop_steps(tris, rest, pos, plane, own, others, reach) if steps is None else steps
+    if steps is None:
+        return None
+    draped, made = steps[0], steps[1]
     taut = draped >= made
     ratio = float(draped.sum() / made.sum())
     stretch = float(draped[taut].sum() / made[taut].sum()) - 1.0 if taut.any() else ratio - 1.0
@@ -395,7 +411,8 @@ class FitTable:
             long_ = l0[sel] >= 0.003
             verts = np.unique(edges[sel])
             # the stretch along the tape's own line; the band's edges where that line has no step
-            hoop = loop_strain(tris, mesh.verts, pos, plane, own, others, reach)
+            steps = loop_steps(tris, mesh.verts, pos, plane, own, others, reach)
+            hoop = loop_strain(tris, mesh.verts, pos, plane, own, others, reach, steps=steps)
             ratio = hoop[1] if hoop is not None else float(length[sel].sum() / l0[sel].sum())
             top = float(strain[long_].max()) if long_.any() else 0.0
             # no more than the yarns there are stretched: a line cut across sheared triangles reads their shear
@@ -405,6 +422,8 @@ class FitTable:
             row = _row(name, side, body_girth, girth, stretch, top, float(maps["pressure_kpa"][verts].max()), limit)
             row["garment_made_cm"] = round(100.0 * girth / ratio, 2)
             row["estimated"] = name in self.estimated
+            if setup.pattern is not None:  # the panels the tape's line crosses (a pattern's region by panel)
+                row["panels"] = setup.pattern.loop_panels(steps[2], steps[0], steps[1]) if steps is not None else []
             out.append(row)
         # a girth the customer gave has its row, also where the garment does not go round it
         have = {r["region"] for r in out}
@@ -440,6 +459,8 @@ class FitTable:
                        float(maps["pressure_kpa"][loop].max()), limit, need=o["required_strain"])
             row["body_girth_here_cm"] = None if here is None else round(here / 10.0, 2)
             row["estimated"] = False  # the body's own girth under the opening, not a customer's measurement
+            if setup.pattern is not None:
+                row["panels"] = setup.pattern.opening_panels(loop, pos, setup.rest, weld)
             rows.append(row)
         return rows
 

@@ -76,6 +76,9 @@ class PatternMesh:
         The vertices along each panel edge, from its start to its end (corners shared by consecutive edges).
     seam_pairs : (s, 2) int64
         Vertex pairs to be sewn, stitch by stitch in the pattern's order, each stitch along its edge ``a``.
+    seam_stitch : (s,) int64
+        The stitch (index into ``Pattern.stitches``) of each row of ``seam_pairs``: a seam's figures after the
+        drape (its gap, its line's stretch) are read per stitch.
     grain : (p, 2) float64
         Unit warp direction of each panel in its frame.
     xyz : (n, 3) float64 or None, m
@@ -94,6 +97,7 @@ class PatternMesh:
     grain: np.ndarray
     xyz: np.ndarray | None = None
     source: str = ""
+    seam_stitch: np.ndarray | None = None
 
     @property
     def vertex_count(self):
@@ -294,15 +298,18 @@ def _stitch_opposed(pattern, stitch, placed, winding):
 
 
 def _seam_pairs(pattern, edge_vertices):
-    """(s, 2) int64: the vertex pairs of every stitch along its edge ``a``, its direction resolved
-    (:func:`_stitch_opposed`)."""
+    """(pairs (s, 2) int64, stitch (s,) int64): the vertex pairs of every stitch along its edge ``a``, its
+    direction resolved (:func:`_stitch_opposed`), and the stitch of each pair."""
     placed = any(np.any(np.asarray(p.translation) != 0) for p in pattern.panels.values())
     winding = {name: np.sign(_signed_area(p.outline())) for name, p in pattern.panels.items()}
     pairs = []
     for s in pattern.stitches:
         va, vb = edge_vertices[s.a], edge_vertices[s.b]
         pairs.append(np.stack([va, vb[::-1] if _stitch_opposed(pattern, s, placed, winding) else vb], axis=1))
-    return np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=np.int64)
+    if not pairs:
+        return np.zeros((0, 2), dtype=np.int64), np.zeros(0, dtype=np.int64)
+    stitch = np.repeat(np.arange(len(pairs), dtype=np.int64), [len(p) for p in pairs])
+    return np.concatenate(pairs), stitch
 
 
 # ---------------------------------------------------------------------- one panel
@@ -455,7 +462,7 @@ def _assemble(pattern, panels):
         g = np.asarray(panel.grain, dtype=np.float64)
         grain.append(g / np.linalg.norm(g))
         at += len(pts)
-    seam_pairs = _seam_pairs(pattern, edge_vertices)
+    seam_pairs, seam_stitch = _seam_pairs(pattern, edge_vertices)
     uv, vp, faces = weld.split_for_sewing(np.concatenate(uv), np.concatenate(vp), np.concatenate(faces), seam_pairs)
     # the split edges' midpoints back among their panels' vertices, so that a panel's vertices stay consecutive
     order = np.argsort(vp, kind="stable")
@@ -471,4 +478,4 @@ def _assemble(pattern, panels):
         for k, panel in enumerate(pattern.panels.values()):
             xyz[vp == k] = panel.to_3d(uv[vp == k])
     return PatternMesh(tuple(pattern.panels), uv, vp, faces, edge_vertices, new[seam_pairs],
-                       np.array(grain).reshape(-1, 2), xyz, str(pattern.source))
+                       np.array(grain).reshape(-1, 2), xyz, str(pattern.source), seam_stitch)
