@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from test_fit import tube
-from vfit_engine.fit.table import garment_girth
+from vfit_engine.fit.loops import garment_girth
 from vfit_engine.io.meshdata import mesh_from_faces
 from vfit_engine.section import MeshSections
 
@@ -115,7 +115,8 @@ def test_the_girth_strain_is_the_stretch_along_the_tapes_line():
     tube stretched only along its length is not stretched round the region. Half the tube bunched (its
     cloth shorter than made: a fold) and half stretched: the stretch is the taut half's, the garment's
     length as made the whole line's."""
-    from vfit_engine.fit.table import _Plane, loop_strain
+    from vfit_engine.fit.loops import loop_strain
+    from vfit_engine.fit.table import _Plane
 
     n = 40
     rest, faces = tube(0.15, n, 9, 0.4, y0=-0.2)
@@ -138,13 +139,13 @@ def test_the_girth_strain_is_the_stretch_along_the_tapes_line():
 
 def test_a_loop_round_both_thighs_is_no_thigh_of_the_garment():
     """A skirt's hem goes round both thighs: no row for either (a trouser leg round one thigh keeps its row)."""
-    from vfit_engine.fit.table import _round_together
+    from vfit_engine.fit.loops import round_together
 
     t = np.linspace(0, 2 * np.pi, 48, endpoint=False)
     circle = np.stack([np.cos(t), np.sin(t)], axis=1)
     left, right = 0.08 * circle + [-0.1, 0.0], 0.08 * circle + [0.1, 0.0]
     skirt = np.stack([0.25 * np.cos(t), 0.15 * np.sin(t)], axis=1)
     leg = 0.1 * circle + [-0.1, 0.0]
-    assert _round_together([skirt], [True], np.array([-0.1, 0.0]), [right])
-    assert not _round_together([leg], [True], np.array([-0.1, 0.0]), [right])
-    assert not _round_together([skirt], [False], np.array([-0.1, 0.0]), [right])  # an open chain goes round nothing
+    assert round_together([skirt], [True], np.array([-0.1, 0.0]), [right])
+    assert not round_together([leg], [True], np.array([-0.1, 0.0]), [right])
+    assert not round_together([skirt], [False], np.array([-0.1, 0.0]), [right])  # an open chain goes round nothing

@@ -154,7 +154,8 @@ def test_a_tubes_line_round_a_cylinder_is_shared_by_its_two_halves():
     64 * 2 r sin(pi / 64)), every step as made its draped length / 1.04 (the rest shape is the tube shrunk 4 %)."""
     from test_fit import tube as quad_tube
 
-    from vfit_engine.fit.table import _Plane, loop_steps
+    from vfit_engine.fit.loops import loop_steps
+    from vfit_engine.fit.table import _Plane
     from vfit_engine.io.meshdata import mesh_from_faces
 
     verts, faces = quad_tube(0.10, 64, 5, 0.4, y0=-0.2)

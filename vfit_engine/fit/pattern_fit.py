@@ -19,7 +19,7 @@ stretch.
   ``MIN_EDGE`` or longer);
 * ``contact_pct``: the share of its area (as cut) resting on the body (the ``contact`` fit map: within
   ``CONTACT_MM`` of the skin), each vertex weighing a third of its triangles' area;
-* ``regions``: per fit-table region whose tape line crosses it (:func:`vfit_engine.fit.table.loop_steps`; an
+* ``regions``: per fit-table region whose tape line crosses it (:func:`vfit_engine.fit.loops.loop_steps`; an
   opening's loop), its share of the garment's line there (``loop_share_pct``, of the draped length), that part
   of the line draped and as cut (``loop_draped_cm``, ``loop_made_cm``) and its **ease**: the region's ease
   (garment girth minus body girth) apportioned to the panels by their share of the line,
