@@ -102,6 +102,10 @@ def size(ctx, garment, body_path, sizes_text, material, units, seams, spacing, a
         raise InputError(f"{garment}: --{bad[0]} is for {what}")
     if seams and not os.path.isfile(seams):
         raise InputError(f"seams file not found: {seams}")
+    if pattern:  # a pattern that cannot be read or sewn fails here, in one line, before any notice or process
+        from vfit_engine.pattern.load import load
+
+        load(garment, seams)
     check_outputs(None, (), {**user_files(garment, body_path, material=material), "--seams": seams},
                   extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
