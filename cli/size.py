@@ -80,7 +80,6 @@ def size(ctx, garment, body_path, sizes_text, material, units, seams, spacing, a
     import time
 
     from vfit_engine.errors import InputError
-    from vfit_engine.pattern.load import is_pattern
     from vfit_engine.sizes import parse_sizes
 
     t_start = time.perf_counter()
@@ -92,20 +91,7 @@ def size(ctx, garment, body_path, sizes_text, material, units, seams, spacing, a
         raise InputError(f"body file not found: {body_path}")
     if json_path:
         check_output_path(json_path, (".json",))
-    given = [n for n in ("units", "seams", "spacing", "arrange")
-             if ctx.get_parameter_source(n) != click.core.ParameterSource.DEFAULT]
-    pattern = is_pattern(garment)
-    bad = [n for n in given if (n == "units") == pattern]
-    if bad:
-        what = ("a garment mesh; a pattern's units are its file's" if pattern
-                else "a sewing pattern (.json, .dxf), not a garment mesh")
-        raise InputError(f"{garment}: --{bad[0]} is for {what}")
-    if seams and not os.path.isfile(seams):
-        raise InputError(f"seams file not found: {seams}")
-    if pattern:  # a pattern that cannot be read or sewn fails here, in one line, before any notice or process
-        from vfit_engine.pattern.load import load
-
-        load(garment, seams)
+    pattern = _check_kind(ctx, garment, seams)
     check_outputs(None, (), {**user_files(garment, body_path, material=material), "--seams": seams},
                   extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
@@ -121,6 +107,29 @@ def size(ctx, garment, body_path, sizes_text, material, units, seams, spacing, a
         click.echo(f"Error: interrupted by {name}; nothing written", err=True)
     if code:
         ctx.exit(code)
+
+
+def _check_kind(ctx, garment, seams):
+    """Whether GARMENT is a pattern; InputError for the options of the other kind, a missing seams file, and a
+    pattern that cannot be read or sewn (in one line, before any notice or process)."""
+    import os
+
+    from vfit_engine.errors import InputError
+    from vfit_engine.pattern.load import is_pattern, load
+
+    given = [n for n in ("units", "seams", "spacing", "arrange")
+             if ctx.get_parameter_source(n) != click.core.ParameterSource.DEFAULT]
+    pattern = is_pattern(garment)
+    bad = [n for n in given if (n == "units") == pattern]
+    if bad:
+        what = ("a garment mesh; a pattern's units are its file's" if pattern
+                else "a sewing pattern (.json, .dxf), not a garment mesh")
+        raise InputError(f"{garment}: --{bad[0]} is for {what}")
+    if seams and not os.path.isfile(seams):
+        raise InputError(f"seams file not found: {seams}")
+    if pattern:
+        load(garment, seams)
+    return pattern
 
 
 def _size(o):

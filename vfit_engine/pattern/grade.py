@@ -97,13 +97,14 @@ class Graded:
 class _Axis:
     """A panel's vertical axis in its own frame: height = ``xy @ grad + c``, ``across`` at right angles."""
 
-    def __init__(self, xy, heights):
+    def __init__(self, xy, heights, where="pattern"):
         a = np.column_stack([xy, np.ones(len(xy))])
         coef = np.linalg.lstsq(a, heights, rcond=None)[0]
         g = coef[:2]
         norm = float(np.linalg.norm(g))
         if norm < 1e-6:
-            raise InputError("a panel lies flat across the body's height: its vertical axis cannot be told")
+            raise InputError(f"{where}: the panel lies flat across the body's height, so the girth rule cannot tell "
+                             f"its vertical axis; fix: place it upright (its translation and rotation)")
         self.grad, self.c = g, float(coef[2])
         self.up = g / norm
         self.across = np.array([self.up[1], -self.up[0]])
@@ -197,7 +198,8 @@ def _trunk_scales(pattern, kinds, height_of, levels):
             continue
         poly = _outline(panel)
         h = np.asarray(height_of(name, poly), float)
-        axes[name], polys[name], heights[name] = _Axis(poly, h), poly, h
+        axes[name] = _Axis(poly, h, f"{pattern.source or 'pattern'}: panel '{name}'")
+        polys[name], heights[name] = poly, h
     out = {}
     for level, (y, girth, change) in levels.items():
         crossing = [n for n in axes if kinds[n] not in BAND_KINDS and heights[n].min() < y < heights[n].max()]
