@@ -4,7 +4,8 @@ from types import SimpleNamespace
 
 import click
 
-from ._common import FILE_UNITS, check_output_path, fit_table_lines, handle_errors, interruption, write_json
+from ._common import (FILE_UNITS, EngineChoice, check_output_path, fit_table_lines, handle_errors, interruption,
+                      write_json)
 from ._outdir import check_outputs
 from ._progress import Progress, cloth_kernels_cached
 from .drape import body_targets, morph_options, user_files
@@ -31,7 +32,8 @@ NOT_JUDGED = 3
               help="A DXF-AAMA pattern's seams (JSON sidecar: docs/pattern-formats.md).")
 @click.option("--spacing", type=click.FloatRange(3, 100), default=None,
               help="A pattern's cloth: edge length in mm [default: 20].")
-@click.option("--arrange", type=click.Choice(("auto", "frame", "wrap")), default="auto", show_default=True,
+@click.option("--arrange", type=EngineChoice("vfit_engine.pattern.placement:ARRANGEMENTS"), default="auto",
+              show_default=True,
               help="How a pattern's panels start round the body (as vfit drape).")
 @click.option("--workers", type=click.IntRange(1, 256), default=None,
               help="Sizes tried at once, each in its own process [default: the cores available].")
