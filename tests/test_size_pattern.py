@@ -1,6 +1,6 @@
 """`vfit size PATTERN` through click's CliRunner: its help, every class of bad input (one line, exit 2, before any
-drape), and the run's wiring (made for, the rule, each size graded and tried) with the drape itself replaced, as a
-sewn drape per size takes 10-60 s (scripts/pattern_sizes.py runs them)."""
+drape), and the run's wiring (made for, the rule, each size graded and handed to the sewing) with the sewn drape
+itself replaced, as it takes 10-60 s a size (scripts/pattern_sizes.py runs them)."""
 import json
 from pathlib import Path
 
@@ -72,30 +72,31 @@ def test_pattern_options_on_a_mesh_and_bad_pattern_files_exit_2_in_one_line(tmp_
 
 
 def test_a_pattern_graded_to_each_size_is_tried_and_said(tmp_path, monkeypatch):
-    from vfit_engine import sizes
-    from vfit_engine.drape import DrapeDiverged
+    from vfit_engine import pattern_sizes
+    from vfit_engine.errors import InputError
 
     tried = []
 
-    def no_drape(setup, settings=None, on_frame=None):  # the drape itself is the size run's slow part
-        tried.append(setup)
-        raise DrapeDiverged("replaced in this test", frame=1)
+    def no_drape(pattern, body, model, **kw):  # the sewn drape is the size run's slow part: stop before it
+        tried.append((pattern, kw))
+        raise InputError("replaced in this test")
 
-    monkeypatch.setattr(sizes, "run_drape", no_drape)
+    monkeypatch.setattr(pattern_sizes, "prepare_pattern_drape", no_drape)
     out = tmp_path / "fit.json"
     r = run("size", tube_file(tmp_path), "--sizes", "L", "--workers", 1, "--spacing", 60, "--json", out)
-    assert r.exit_code == 3, r.output  # no size judged: its drape "diverged"
+    assert r.exit_code == 3, r.output  # no size judged: its drape "failed"
     text = " ".join(r.output.split())
     assert "made for: unknown (the pattern names no body), assumed the default female body" in text
     assert "the pattern as given is size S" in text and "graded by the rule: girth growth spread" in text
-    assert "hips 110.0 cm x 1.1" in text
+    assert "hips 110.0 cm x 1.1" in text and "replaced in this test" in text
     res = json.loads(out.read_text())
     assert [s["size"] for s in res["sizes"]] == ["L"] and res["made_for"].startswith("made for: unknown")
     # L is graded by the steps from the default body (S) to its centres at the hips and the waist (the tube,
     # a skirt here, hangs from the waist)
     levels = res["sizes"][0]["grading"]["levels"]
     assert levels["hips"]["garment_cm"] == pytest.approx(110.0, abs=0.1) and levels["hips"]["scale"] > 1.1
-    # it was sewn from its graded panels: the flat cloth (the panels side by side, 10 cm apart) is as much wider
-    (setup,) = tried
+    # the graded pattern went to the sewing, with the options given: its top as wide as the widest scale says
+    ((graded, kw),) = tried
+    assert kw["spacing"] == pytest.approx(0.06) and kw["arrange"] == "auto"
     widest = max(r["scale"] for r in levels.values())
-    assert float(np.ptp(setup.rest[:, 0])) == pytest.approx(1.1 * widest + 0.1, abs=0.005)
+    assert float(np.ptp(graded.panels["skirt_front"].vertices[:, 0])) == pytest.approx(0.55 * widest, abs=1e-3)
