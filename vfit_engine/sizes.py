@@ -1,5 +1,8 @@
 """Which size? A size run of a garment, each size tried on the customer, and the size to buy.
 
+(A sewing pattern's size run, graded by its own rule and sewn on the customer: :mod:`vfit_engine.pattern_sizes`,
+which takes its size bodies, processes, tables and rule from here.)
+
 ::
 
     results = try_sizes("suit.obj", {"targets": {"height": 1.80, "bust": 0.98}, "gender": "male"})
