@@ -190,8 +190,10 @@ def _tables(res):
     else:
         click.echo(f"vfit size: {res['garment']}: the garment as given is size {own['size']} (made on a "
                    f"{own['measure']} of {own['body_cm']:.1f} cm; centre of {own['size']}: {own['centre_cm']} cm)")
+    at_height = ("size bodies at that height, the pattern's lengths as made" if res.get("made_for")
+                 else "sizes graded at that height")
     click.echo(f"customer: {given('bust', chest)}, {given('waist', 'waist')}, {given('hips', 'hips')}, height "
-               f"{c['height']:.1f} cm; sizes graded at that height; {len(res['sizes'])} sizes in "
+               f"{c['height']:.1f} cm; {at_height}; {len(res['sizes'])} sizes in "
                f"{res['wall_s']:.1f} s on {res['workers']} process{'es' if res['workers'] > 1 else ''}")
     for s in res["sizes"]:
         cc = s["centre_cm"]
