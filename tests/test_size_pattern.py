@@ -69,6 +69,10 @@ def test_pattern_options_on_a_mesh_and_bad_pattern_files_exit_2_in_one_line(tmp_
     assert one_line_error(r) and "broken.json" in r.output and "panels" in r.output
     r = run("size", tmp_path / "absent.json")
     assert one_line_error(r) and "absent.json" in r.output
+    sidecar = tmp_path / "seams.json"
+    sidecar.write_text('{"seams": []}')
+    r = run("size", tube_file(tmp_path), "--seams", sidecar)
+    assert one_line_error(r) and "carries its own stitches" in r.output
 
 
 def test_a_pattern_graded_to_each_size_is_tried_and_said(tmp_path, monkeypatch):
