@@ -1,9 +1,11 @@
-"""``vfit size``: which size of a garment to buy -- a size run graded from it, each size tried on the customer."""
+"""``vfit size``: which size of a garment or a sewing pattern to buy -- a size run graded from it, each size tried
+on the customer."""
 from types import SimpleNamespace
 
 import click
 
-from ._common import FILE_UNITS, check_output_path, fit_table_lines, handle_errors, interruption, write_json
+from ._common import (FILE_UNITS, EngineChoice, check_output_path, fit_table_lines, handle_errors, interruption,
+                      write_json)
 from ._outdir import check_outputs
 from ._progress import Progress, cloth_kernels_cached
 from .drape import body_targets, morph_options, user_files
@@ -26,6 +28,13 @@ NOT_JUDGED = 3
               help="silk, cotton, wool, denim, jersey, or a material .json file (keys with units: see README).")
 @click.option("--units", type=FILE_UNITS, default="auto", show_default=True,
               help="Units of the garment file (auto: from its height; MakeHuman clothes are dm).")
+@click.option("--seams", default=None, type=click.Path(dir_okay=False),
+              help="A DXF-AAMA pattern's seams (JSON sidecar: docs/pattern-formats.md).")
+@click.option("--spacing", type=click.FloatRange(3, 100), default=None,
+              help="A pattern's cloth: edge length in mm [default: 20].")
+@click.option("--arrange", type=EngineChoice("vfit_engine.pattern.placement:ARRANGEMENTS"), default="auto",
+              show_default=True,
+              help="How a pattern's panels start round the body (as vfit drape).")
 @click.option("--workers", type=click.IntRange(1, 256), default=None,
               help="Sizes tried at once, each in its own process [default: the cores available].")
 @click.option("--json", "json_path", default=None, type=click.Path(dir_okay=False),
@@ -33,9 +42,10 @@ NOT_JUDGED = 3
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines and no tables: only the recommendation.")
 @click.pass_context
 @handle_errors
-def size(ctx, garment, body_path, sizes_text, material, units, workers, json_path, quiet, gender, height, weight,
-         definition, **girths):
-    """Say which size of GARMENT (.obj/.ply) fits the customer, and why.
+def size(ctx, garment, body_path, sizes_text, material, units, seams, spacing, arrange, workers, json_path, quiet,
+         gender, height, weight, definition, **girths):
+    """Say which size of GARMENT (.obj/.ply, or a sewing pattern: GarmentCode
+    .json, DXF-AAMA .dxf with --seams) fits the customer, and why.
 
     Makes a size run of the garment by grading it (made to measure) from the
     body it was made on to bodies at the centre of each EN 13402 size (bust,
@@ -54,10 +64,19 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
     every size is tight somewhere, the largest, saying where it is tight.
     Exit 3 when no size could be judged (every drape diverged or failed).
 
+    A pattern is graded from the body it was made for (its own when it names
+    one, else the default body of the customer's gender, said to be assumed)
+    by one rule, which it prints: the girth change at the bust, waist and
+    hips spread over the panels crossing each in proportion to their width,
+    linear in height between them; sleeves across by the upper arm's change,
+    their caps kept to their armholes; lengths as made. Each size is sewn and
+    draped as vfit drape PATTERN does.
+
     \b
     Examples:
       vfit size male_casualsuit02.obj --gender male --height 180 --chest 98
       vfit size suit.obj --body customer.obj --sizes S,M,L --json fit.json
+      vfit size shirt.json --height 172 --bust 99.8 --waist 84.3 --hips 103.5
     """
     import os
     import time
@@ -74,10 +93,13 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
         raise InputError(f"body file not found: {body_path}")
     if json_path:
         check_output_path(json_path, (".json",))
-    check_outputs(None, (), user_files(garment, body_path, material=material), extra_outputs=[json_path])
+    pattern = _check_kind(ctx, garment, seams)
+    check_outputs(None, (), {**user_files(garment, body_path, material=material), "--seams": seams},
+                  extra_outputs=[json_path])
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
     o = SimpleNamespace(garment=garment, names=names, material=material, units=units, workers=workers,
-                        json_path=json_path, quiet=quiet, t_start=t_start,
+                        json_path=json_path, quiet=quiet, t_start=t_start, pattern=pattern, seams=seams,
+                        spacing=spacing, arrange=arrange,
                         customer=dict(path=body_path, targets=targets, weight_kg=weight,
                                       gender=gender if gender_given else None, definition=definition))
     try:
@@ -89,10 +111,34 @@ def size(ctx, garment, body_path, sizes_text, material, units, workers, json_pat
         ctx.exit(code)
 
 
+def _check_kind(ctx, garment, seams):
+    """Whether GARMENT is a pattern; InputError for the options of the other kind, a missing seams file, and a
+    pattern that cannot be read or sewn (in one line, before any notice or process)."""
+    import os
+
+    from vfit_engine.errors import InputError
+    from vfit_engine.pattern.load import is_pattern, load
+
+    given = [n for n in ("units", "seams", "spacing", "arrange")
+             if ctx.get_parameter_source(n) != click.core.ParameterSource.DEFAULT]
+    pattern = is_pattern(garment)
+    bad = [n for n in given if (n == "units") == pattern]
+    if bad:
+        what = ("a garment mesh; a pattern's units are its file's" if pattern
+                else "a sewing pattern (.json, .dxf), not a garment mesh")
+        raise InputError(f"{garment}: --{bad[0]} is for {what}")
+    if seams and not os.path.isfile(seams):
+        raise InputError(f"seams file not found: {seams}")
+    if pattern:
+        load(garment, seams)
+    return pattern
+
+
 def _size(o):
     """The size command's work (``o``: the options); returns the exit code."""
     import time
 
+    from vfit_engine.pattern_sizes import try_pattern_sizes
     from vfit_engine.sizes import try_sizes
 
     def progress(text):
@@ -103,8 +149,15 @@ def _size(o):
         click.echo("vfit size: the first run compiles the cloth kernels in every process that drapes: a wait of a "
                    "few minutes, once (later runs load them from the cache)", err=True)
     with Progress(True, command="vfit size").compiling():  # this process's own (measuring the customer)
-        res = try_sizes(o.garment, o.customer, sizes=o.names, workers=o.workers, progress=progress, units=o.units,
-                        material=o.material)
+        if o.pattern:
+            res = try_pattern_sizes(o.garment, o.customer, sizes=o.names, workers=o.workers, progress=progress,
+                                    material=o.material, seams=o.seams, arrange=o.arrange,
+                                    **({} if o.spacing is None else dict(spacing=o.spacing / 1000.0)))
+            for w in res["warnings"]:  # each names the file
+                click.echo(f"Warning: {w}", err=True)
+        else:
+            res = try_sizes(o.garment, o.customer, sizes=o.names, workers=o.workers, progress=progress,
+                            units=o.units, material=o.material)
     res["wall_s"] = round(time.perf_counter() - o.t_start, 3)
     if not o.quiet:
         _tables(res)
@@ -130,10 +183,17 @@ def _tables(res):
     def given(name, label):
         return f"{label} {c[name]:.1f}" + (" (estimated)" if name in est else "")
 
-    click.echo(f"vfit size: {res['garment']}: the garment as given is size {own['size']} (made on a {own['measure']} "
-               f"of {own['body_cm']:.1f} cm; centre of {own['size']}: {own['centre_cm']} cm)")
+    if res.get("made_for"):  # a pattern
+        click.echo(f"vfit size: {res['garment']}: {res['made_for']}; the pattern as given is size {own['size']} "
+                   f"({own['measure']} {own['body_cm']:.1f} cm; centre of {own['size']}: {own['centre_cm']} cm)")
+        click.echo(f"graded by the rule: {res['grading_rule']}")
+    else:
+        click.echo(f"vfit size: {res['garment']}: the garment as given is size {own['size']} (made on a "
+                   f"{own['measure']} of {own['body_cm']:.1f} cm; centre of {own['size']}: {own['centre_cm']} cm)")
+    at_height = ("size bodies at that height, the pattern's lengths as made" if res.get("made_for")
+                 else "sizes graded at that height")
     click.echo(f"customer: {given('bust', chest)}, {given('waist', 'waist')}, {given('hips', 'hips')}, height "
-               f"{c['height']:.1f} cm; sizes graded at that height; {len(res['sizes'])} sizes in "
+               f"{c['height']:.1f} cm; {at_height}; {len(res['sizes'])} sizes in "
                f"{res['wall_s']:.1f} s on {res['workers']} process{'es' if res['workers'] > 1 else ''}")
     for s in res["sizes"]:
         cc = s["centre_cm"]
@@ -145,6 +205,8 @@ def _tables(res):
         if s.get("message"):
             title += f" ({s['message']})"
         click.echo(title)
+        if s.get("grading"):
+            click.echo(f"  graded: {_grading(s['grading'])}")
         if not s.get("fit"):
             continue
         click.echo("\n".join("  " + line for line in fit_table_lines(s["fit"])))
@@ -153,3 +215,14 @@ def _tables(res):
         if why and pick in SIZE_NAMES and SIZE_NAMES.index(s["size"]) < SIZE_NAMES.index(pick):
             click.echo(f"  rejected {s['size']}: {why}")  # the rule passed over it: the regions that decided
     click.echo("")
+
+
+def _grading(g):
+    """"bust 109.8 cm x 1.073 (body +8.0 cm), ...; sleeves x 1.047 across, cap x 0.874": what the rule did."""
+    parts = [f"{name} {r['garment_cm']:.1f} cm x {r['scale']:.3f} (body {r['body_change_cm']:+.1f} cm)"
+             for name, r in g["levels"].items()]
+    for a in g["arms"][:1]:  # both arms alike
+        parts.append(f"sleeves {a['girth_cm']:.1f} cm x {a['scale']:.3f} across (upper arm {a['change_cm']:+.1f} cm"
+                     f"{'' if a['width_by'] == 'upper arm' else ', held to the armhole'}), cap height x "
+                     f"{a['cap_scale']:.3f}")
+    return "; ".join(parts)

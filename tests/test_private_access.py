@@ -34,7 +34,7 @@ PUBLIC_UNDERSCORED = {
 ALLOWED = {
     ("cli/main.py", "_exit"):
         "os._exit is the os module's documented call to end a process without the interpreter's teardown",
-    ("vfit_engine/sizes.py", "_processes"):
+    ("vfit_engine/worker_pool.py", "_processes"):
         "ProcessPoolExecutor has no public way to end its workers before Python 3.14 (terminate_workers, "
         "used when present); the fallback reads the executor's process table",
     ("vfit_engine/_jit.py", "_locator_classes"):

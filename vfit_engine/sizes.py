@@ -1,5 +1,8 @@
 """Which size? A size run of a garment, each size tried on the customer, and the size to buy.
 
+(A sewing pattern's size run, graded by its own rule and sewn on the customer: :mod:`vfit_engine.pattern_sizes`,
+which takes its size bodies, processes, tables and rule from here.)
+
 ::
 
     results = try_sizes("suit.obj", {"targets": {"height": 1.80, "bust": 0.98}, "gender": "male"})
@@ -37,13 +40,8 @@
 """
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import multiprocessing
-import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
@@ -59,6 +57,7 @@ from vfit_engine.garment.garment import load_garment
 from vfit_engine.garment.placement import place_garment
 from vfit_engine.garment.transfer import transfer_garment
 from vfit_engine.sim.materials import resolve_material
+from vfit_engine.worker_pool import default_workers, pool_results, worker_pool
 
 #: EN 13402-3 letter sizes: (size, bust/chest, waist, hips) in cm, the middle of each size's interval
 #: (women's bust XS 74-82 ... XL 107-119, men's chest XS 78-86 ... XL 110-118; waist and hips stepped
@@ -185,7 +184,7 @@ def grade(garment, size_body, model, reference=None):
     return dataclasses.replace(garment, mesh=garment.mesh.with_verts(verts), warnings=list(garment.warnings))
 
 
-def _customer_body(model, customer):
+def customer_body(model, customer):
     """The customer's Body from a spec (:func:`try_sizes`)."""
     if customer.get("verts") is not None:
         return Body(np.ascontiguousarray(customer["verts"], dtype=np.float64), dict(customer.get("description") or {}),
@@ -215,7 +214,7 @@ def try_size(job):
         ``grade``, ``setup``, ``drape``, ``fit``).
     """
     t0 = time.perf_counter()
-    out = _blank(job)
+    out = blank_result(job)
     times = out["times_s"]
 
     def lap(stage, t=[t0]):
@@ -231,27 +230,11 @@ def try_size(job):
         lap("size_body")
         graded = grade(garment, body_x, model)
         lap("grade")
-        customer = _customer_body(model, job["customer"])
+        customer = customer_body(model, job["customer"])
         settings = DrapeSettings() if job.get("max_frames") is None else DrapeSettings(max_frames=job["max_frames"])
         setup = prepare_drape(graded, customer, model, reference=body_x, material=job.get("material", "cotton"),
                               rest="garment", settings=settings)
-        out["tight_openings"] = sum(1 for o in setup.openings if o["required_strain"] > 0)
-        lap("setup")
-        try:
-            result = run_drape(setup, settings)
-        except DrapeDiverged as exc:
-            out.update(status="diverged", message=str(exc), frames=exc.frame)
-            return out
-        finally:
-            lap("drape")
-        rows = [_plain(r) for r in process_cache.fit_table(model, customer).rows(setup, result.pos)]
-        lap("fit")
-        m = result.metrics
-        out.update(status="settled" if result.converged else "not settled", fit=rows, summary=summary_line(rows),
-                   frames=result.frames, max_strain=_num(m.get("max_strain")), p99_strain=_num(m.get("p99_strain")))
-        if not result.converged:
-            out["message"] = (f"not settled within {settings.max_frames} frames, judged on the last "
-                              f"({100 * result.settle['share_moving']:.2f} % of the cloth still moving)")
+        drape_and_judge(out, setup, settings, model, customer, lap)
     except VfitError as exc:
         out.update(status="failed", message=str(exc))
     finally:
@@ -259,7 +242,29 @@ def try_size(job):
     return out
 
 
-def _blank(job, message=None):
+def drape_and_judge(out, setup, settings, model, customer, lap):
+    """Run the drape of ``setup`` on ``customer`` and put its status and fit table into ``out`` (a
+    :func:`try_size` result; ``lap(stage)`` times the stages setup, drape and fit)."""
+    out["tight_openings"] = sum(1 for o in setup.openings if o["required_strain"] > 0)
+    lap("setup")
+    try:
+        result = run_drape(setup, settings)
+    except DrapeDiverged as exc:
+        out.update(status="diverged", message=str(exc), frames=exc.frame)
+        return
+    finally:
+        lap("drape")
+    rows = [plain_row(r) for r in process_cache.fit_table(model, customer).rows(setup, result.pos)]
+    lap("fit")
+    m = result.metrics
+    out.update(status="settled" if result.converged else "not settled", fit=rows, summary=summary_line(rows),
+               frames=result.frames, max_strain=_num(m.get("max_strain")), p99_strain=_num(m.get("p99_strain")))
+    if not result.converged:
+        out["message"] = (f"not settled within {settings.max_frames} frames, judged on the last "
+                          f"({100 * result.settle['share_moving']:.2f} % of the cloth still moving)")
+
+
+def blank_result(job, message=None):
     """The result of ``job`` before it ran (or when its process died: status failed, ``message``)."""
     size = job["size"]
     return dict(size=size, centre_cm={k: round(100 * v, 1) for k, v in size_centres(job["gender"])[size].items()},
@@ -267,21 +272,11 @@ def _blank(job, message=None):
                 p99_strain=None, tight_openings=None, wall_s=None, times_s={})
 
 
-def _pool_results(futures):
-    """The results of submitted :func:`try_size` jobs (``futures``: future -> job), as they finish; a job
-    whose process died fails."""
-    for f in as_completed(futures):
-        try:
-            yield f.result()
-        except BrokenProcessPool as exc:
-            yield _blank(futures[f], f"its worker process died ({exc})")
-
-
 def _num(x):
     return None if x is None else float(x)
 
 
-def _plain(row):
+def plain_row(row):
     """A fit-table row with plain Python numbers (JSON, pickling)."""
     out = {}
     for k, v in row.items():
@@ -289,14 +284,6 @@ def _plain(row):
             v = v.item()
         out[k] = v
     return out
-
-
-def default_workers():
-    """The cores this process may use."""
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # not Linux
-        return max(os.cpu_count() or 1, 1)
 
 
 def try_sizes(garment_path, customer, sizes=None, workers=None, progress=None, units="auto", material="cotton",
@@ -344,91 +331,68 @@ def try_sizes(garment_path, customer, sizes=None, workers=None, progress=None, u
     resolve_material(material)  # a bad material fails here, not in every worker
     garment = load_garment(garment_path, units=units)
     n_workers = max(1, min(int(workers or default_workers()), len(names)))
-    with _worker_pool(n_workers) as pool:  # the workers start while this process builds the customer
+    with worker_pool(n_workers) as pool:  # the workers start while this process builds the customer
         model = model or BodyModel.load()
         gender = garment_gender(garment) or customer.get("gender") or "female"
         if not isinstance(gender, str):
             gender = size_gender(gender)
-        spec = dict(customer)
-        spec["gender"] = customer.get("gender") or gender
-        say("building the customer's body" if spec.get("targets") or spec.get("weight_kg") is not None
-            else "reading the customer's body" if spec.get("path") else "loading the customer's body")
-        body = _customer_body(model, spec)
-        if body.gender is None:  # a body file: the gender asked for, else the garment's (chest or bust)
-            body.gender = spec["gender"]
-        height = stature(body.verts)
-        spec = dict(verts=body.verts, description=body.description, gender=body.gender)
+        body, spec, height = sizing_customer(model, customer, gender, say)
         jobs = [dict(garment=str(garment_path), units=units, gender=gender, size=s, height_m=height, customer=spec,
                      material=material, max_frames=max_frames) for s in names]
         # the workers start on the sizes while this process measures the customer and the garment's body
-        if pool is not None:
-            results = _pool_results({pool.submit(try_size, job): job for job in jobs})
-        else:
-            results = (try_size(dict(job, model=model)) for job in jobs)
+        results = submit_sizes(pool, try_size, jobs, model)
         measurer = Measurer(model)
-        meas = measurer.measure(body.verts, names=("height", "bust", "waist", "hips"), mass=False, gender=body.gender)
         own = garment_size(default_body(model, gender), gender, measurer)
         say(f"the garment as given is size {own['size']} (made on a {own['measure']} of {own['body_cm']:.1f} cm; "
             f"centre {own['centre_cm']} cm); trying {', '.join(names)} on {n_workers} "
             f"process{'es' if n_workers > 1 else ''}")
-        done = {}
-        for r in results:
-            done[r["size"]] = r
-            what = r["status"] if r["status"] in JUDGED else f"{r['status']}: {r['message']}"
-            took = "" if r["wall_s"] is None else f" in {r['wall_s']:.1f} s"  # None: its process died
-            say(f"size {r['size']}: {what}{took} ({len(done)}/{len(jobs)})")
-    out = dict(recommended=None, reason=None, rule=RULE, garment=str(garment_path), gender=gender, garment_size=own,
-               size_height_cm=round(100 * height, 2),
-               customer={k: round(100 * v, 2) for k, v in meas.values.items()},
-               customer_estimated=_estimated(body.description, ("bust", "waist", "hips")),
-               sizes=[done[s] for s in names], workers=n_workers)
+        out = size_run(body, measurer, height, n_workers)
+        done = collect_sizes(results, len(jobs), say)
+    out.update(garment=str(garment_path), gender=gender, garment_size=own, sizes=[done[s] for s in names])
     out["recommended"], out["reason"] = recommend(out)
     out["wall_s"] = round(time.perf_counter() - t0, 3)
     return out
 
 
-@contextlib.contextmanager
-def _worker_pool(n_workers):
-    """A pool of ``n_workers`` spawned processes with one Numba thread each, warmed up
-    (:func:`vfit_engine.process_cache.warm_up`); None for one worker (the jobs then run in this process).
-    On an error or an interruption the workers are ended at once, not waited for."""
-    if n_workers <= 1:
-        yield None
-        return
+def sizing_customer(model, customer, gender, say):
+    """The customer of a size run: (Body, the picklable spec the workers rebuild it from, height m).
 
-    # a spawned child inherits the environment as it is when it starts (Numba reads the setting when
-    # it is imported there); the processes start at the submits, so it covers them all and is put
-    # back at once
-    key, before = "NUMBA_NUM_THREADS", os.environ.get("NUMBA_NUM_THREADS")
-    pool = ProcessPoolExecutor(n_workers, mp_context=multiprocessing.get_context("spawn"))
-    ok = False
-    try:
-        os.environ[key] = "1"
-        try:
-            for _ in range(n_workers):
-                pool.submit(process_cache.warm_up)
-        finally:
-            if before is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = before
-        yield pool
-        ok = True
-    finally:
-        if not ok:
-            _end_workers(pool)
-        pool.shutdown(wait=True, cancel_futures=True)
+    ``customer`` is :func:`try_sizes`'s spec; ``gender`` the one its size table is read in (a body file
+    without one takes the customer's gender, else this)."""
+    spec = dict(customer)
+    spec["gender"] = customer.get("gender") or gender
+    say("building the customer's body" if spec.get("targets") or spec.get("weight_kg") is not None
+        else "reading the customer's body" if spec.get("path") else "loading the customer's body")
+    body = customer_body(model, spec)
+    if body.gender is None:  # a body file: the gender asked for, else the garment's (chest or bust)
+        body.gender = spec["gender"]
+    return body, dict(verts=body.verts, description=body.description, gender=body.gender), stature(body.verts)
 
 
-def _end_workers(pool):
-    """Terminate the pool's worker processes (this pool's own, by their process objects)."""
-    end = getattr(pool, "terminate_workers", None)  # Python >= 3.14
-    if end is not None:
-        end()
-        return
-    for proc in list((getattr(pool, "_processes", None) or {}).values()):
-        if proc.is_alive():
-            proc.terminate()
+def submit_sizes(pool, job_fn, jobs, model):
+    """The results of ``job_fn`` on every job as they finish: on the pool's processes, else here one by one."""
+    if pool is not None:
+        return pool_results({pool.submit(job_fn, job): job for job in jobs}, blank_result)
+    return (job_fn(dict(job, model=model)) for job in jobs)
+
+
+def collect_sizes(results, total, say):
+    """{size: result} of the tried sizes, saying each as it is done."""
+    done = {}
+    for r in results:
+        done[r["size"]] = r
+        what = r["status"] if r["status"] in JUDGED else f"{r['status']}: {r['message']}"
+        took = "" if r["wall_s"] is None else f" in {r['wall_s']:.1f} s"  # None: its process died
+        say(f"size {r['size']}: {what}{took} ({len(done)}/{total})")
+    return done
+
+
+def size_run(body, measurer, height, n_workers):
+    """A size run's result before its garment's fields and sizes: the rule and the customer's figures."""
+    meas = measurer.measure(body.verts, names=("height", "bust", "waist", "hips"), mass=False, gender=body.gender)
+    return dict(recommended=None, reason=None, rule=RULE, size_height_cm=round(100 * height, 2),
+                customer={k: round(100 * v, 2) for k, v in meas.values.items()},
+                customer_estimated=estimated_girths(body.description, ("bust", "waist", "hips")), workers=n_workers)
 
 
 def _where(rows):
@@ -447,7 +411,7 @@ def _where(rows):
     return "the " + _join(parts)
 
 
-def _estimated(description, names):
+def estimated_girths(description, names):
     """Which of ``names`` the customer did not give (the body model estimated them): a body built to
     measurements (``description``: :class:`vfit_engine.body.resolve.Body`'s) gives those not among its targets."""
     if description.get("source") != "morph":

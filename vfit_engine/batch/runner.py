@@ -44,7 +44,7 @@ from vfit_engine import process_cache
 from vfit_engine.batch.results import ResultStore, flat_row
 from vfit_engine.batch.task import blank_row, build_body, run_task
 from vfit_engine.errors import InputError
-from vfit_engine.sizes import default_workers
+from vfit_engine.worker_pool import default_workers
 
 #: Environment of the local cluster's worker processes (read when they import Numba / BLAS).
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
