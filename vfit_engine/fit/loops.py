@@ -28,11 +28,6 @@ def _distance_to_loop(points, loop):
     return np.linalg.norm(points[:, None, :] - near, axis=2).min(axis=1)
 
 
-#: Limbs a garment fits only with a part of its own (a sleeve, a trouser leg): a loop that goes round the limb
-#: together with another body part (a skirt round both thighs) gives the limb no row.
-ALONE = ("upper arm", "thigh")
-
-
 def round_together(loops, closed, centre, others):
     """Whether a closed garment loop winds round ``centre`` and round the middle of one of the body's ``others``
     loops too (a skirt's hem round both thighs)."""

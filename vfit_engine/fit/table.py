@@ -69,6 +69,9 @@ ROUND_COS = 0.5
 TORSO = ("bust", "underbust", "waist", "hips")
 LIMBS = (("neck", "neck-circ"), ("upper arm", "upperarm-circ"), ("thigh", "thigh-circ"))
 KEY_REGIONS = ("bust", "chest", "waist", "hips")
+#: Limbs a garment fits only with a part of its own (a sleeve, a trouser leg): a loop that goes round the limb
+#: together with another body part (a skirt round both thighs) gives the limb no row.
+ALONE = ("upper arm", "thigh")
 #: A region's measurement as the body is built to it (``vfit morph``'s names: a man's chest is ``bust``).
 TARGET_NAME = {"bust": "bust", "chest": "bust", "underbust": "underbust", "waist": "waist", "hips": "hips",
                "neck": "neck", "upper arm": "upper-arm", "thigh": "thigh"}
