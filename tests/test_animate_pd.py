@@ -41,9 +41,9 @@ def _drive(solver, state, col, verts, step, frames, fps, steps, velocity, each=N
 
 def test_a_sheet_on_a_moving_slab_is_carried_at_its_speed():
     """A sheet resting on a slab that sets off sideways at 0.3 m/s: Coulomb friction (mu = 0.5) takes it up to the
-    slab's speed, slipping v^2 / (2 mu g) = 9.2 mm while it does (analytic), then it rides along: after 1 s it
-    moves at the slab's speed and lies v t - 9.2 mm on. Told the body is still (no velocity), the contacts hold it
-    back where it lay instead."""
+    slab's speed, slipping v^2 / (2 mu g) = 9.2 mm while it does (analytic), then it rides along: after 0.5 s it
+    moves at the slab's speed and lies v t - 9.2 mm on, the same to the byte run again. Told the body is still
+    (no velocity), the contacts hold it back where it lay instead."""
     import trimesh
 
     from vfit_engine.sim.contact_points import contact_points
@@ -52,14 +52,14 @@ def test_a_sheet_on_a_moving_slab_is_carried_at_its_speed():
     from vfit_engine.sim.solver_settings import ContactSettings, PDSettings
     from vfit_engine.sim.springs import grid_polygons
 
-    speed, fps, frames, mu = 0.3, 30, 30, 0.5
+    speed, fps, frames, mu = 0.3, 30, 15, 0.5
     slab = trimesh.creation.box(extents=(0.6, 0.1, 0.6))
     v0, tris = np.ascontiguousarray(slab.vertices, dtype=np.float64), np.ascontiguousarray(slab.faces)
     pos, fv, fo = grid_polygons(6, 6, 0.2, 0.2)
     start = np.ascontiguousarray(pos + [0.0, 0.05 + 0.0021, 0.0])  # on the top face, at the skin (2 mm)
     model = Model.from_polygons(fv, fo, pos, "cotton")
-    moved, speed_end = {}, {}
-    for carried in (True, False):
+    moved, speed_end, end = {}, {}, []
+    for carried in (True, True, False):  # twice carried: the same bytes (determinism)
         col = _moving(v0, tris, (speed / fps, 0.0, 0.0), frames, 0.02)
         solver = SolverPD(model, PDSettings(), ContactSettings(skin=0.002, friction=mu), body=col,
                           points=contact_points(fv, fo, pos, spacing=0.015))
@@ -68,6 +68,7 @@ def test_a_sheet_on_a_moving_slab_is_carried_at_its_speed():
         _drive(solver, state, col, v0, (speed / fps, 0.0, 0.0), frames, fps, 4,
                np.tile([speed if carried else 0.0, 0.0, 0.0], (len(v0), 1)),
                each=lambda k: last.update({k: state.pos[:, 0].mean()}))
+        end.append(state.pos.tobytes())
         moved[carried] = last[frames] - start[:, 0].mean()
         speed_end[carried] = (last[frames] - last[frames - 1]) * fps  # over the last frame
         if carried:  # on the slab (a loose sheet rucks up a few mm on PD's contacts, the same on a still slab)
@@ -77,6 +78,7 @@ def test_a_sheet_on_a_moving_slab_is_carried_at_its_speed():
     assert speed_end[True] == pytest.approx(speed, rel=0.02)
     assert moved[True] == pytest.approx(speed * frames / fps - slip, abs=0.003)
     assert abs(moved[False]) < 0.005 and abs(speed_end[False]) < 0.01
+    assert end[0] == end[1] != end[2]
 
 
 def test_a_sphere_moving_into_a_sheet_pushes_it_without_penetration():
@@ -135,10 +137,10 @@ def tube(body_model, tmp_path_factory):
     return load_garment(str(path), units="m"), body
 
 
-def test_the_walk_on_both_solvers_gives_the_same_figures_deterministically(tube, body_model):
+def test_the_walk_runs_on_either_solver_with_the_same_figures(tube, body_model):
     """The animate loop runs on SolverPD when the drape's settings are projective (drape.settings.projective), on
     SolverVerlet otherwise, through the same calls: the same figures of every frame, within the bars on the walk's
-    first frame; and the PD animation twice gives the same bytes."""
+    first frame."""
     from vfit_engine.animate.loop import AnimateSettings, run_animation
     from vfit_engine.animate.motion import load_clip
     from vfit_engine.animate.outputs import FRAME_KEYS, quality
@@ -151,13 +153,12 @@ def test_the_walk_on_both_solvers_gives_the_same_figures_deterministically(tube,
     pd_settings = projective(verlet_settings)
     setup = prepare_drape(garment, body, body_model, settings=pd_settings)  # (the solver plays no part in it)
     st = AnimateSettings(frames=1, blend_s=0.2)
-    pd, again, verlet = (run_animation(setup, setup.start, clip, body_model, st, dst)
-                         for dst in (pd_settings, pd_settings, verlet_settings))
+    pd, verlet = (run_animation(setup, setup.start, clip, body_model, st, dst) for dst in (pd_settings, verlet_settings))
     assert pd.info["solver"] == "SolverPD" and verlet.info["solver"] == "SolverVerlet"
     assert pd.info["substeps"] == 4 and verlet.info["substeps"] == 16  # 1/120 s and 1/480 s steps a 1/30 s frame
     assert set(pd.figures[1]) == set(verlet.figures[1]) >= set(FRAME_KEYS)
     assert quality(pd.figures)["passed"], quality(pd.figures)
-    assert pd.pos.tobytes() == again.pos.tobytes() and pd.figures == again.figures
+    assert pd.info["matrix_refactors"] > 0  # the bands re-weighed as the cloth moves (PDSettings.band_weight)
 
 
 @pytest.mark.parametrize("args, words", [

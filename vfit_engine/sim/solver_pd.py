@@ -12,6 +12,12 @@ as the Verlet solver takes it (:func:`vfit_engine.kernels.contact_solve.contact_
 travels one edge a sweep: one solve carries it over the garment. Not yet the product's solver: where it stands,
 what was tried and what is next are in ``docs/solver.md``.
 
+A moving body (:meth:`body_moved`, the Verlet solver's interface: :class:`~vfit_engine.sim.body_motion.BodyMotion`):
+the contacts of each step are made against the body where it is then, and the skin's velocity under each vertex
+its contact points touch (:func:`vfit_engine.kernels.pd.contact_body_velocity`) enters the friction of the
+iterations and the contact velocity, so skin that moves carries the cloth on it; the matrix does not depend on the
+body and is not refactored for it.
+
 What lies where: the stretch bands, shear diagonals, bend limits and bend springs and the corner angles (on the
 polygons' own edges) are in the matrix; the hinges (four vertices: they would fill the factor) act as forces
 evaluated at the iterate, with a diagonal that bounds their stiffness (:mod:`vfit_engine.kernels.pd`).
