@@ -172,6 +172,17 @@ def test_animate_refuses_mesh_options_on_a_pattern(tmp_path, args, words):
     assert not (tmp_path / "o").exists()
 
 
+def test_animate_refuses_a_broken_pattern_in_one_line(tmp_path):
+    bad = tmp_path / "broken.json"
+    bad.write_text(json.dumps({"pattern": {"panels": {"front": {"vertices": [[0, 0], [1, 0]], "edges": []}}}}))
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "report.json").write_text("{}")  # an earlier run's: kept when this one fails before it starts
+    r = CliRunner().invoke(cli, ["animate", str(bad), "-o", str(out), "-q"])
+    assert r.exit_code == 2 and str(bad) in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert "Traceback" not in r.output and (out / "report.json").read_text() == "{}"
+
+
 def test_animate_refuses_pattern_options_on_a_mesh(tmp_path):
     skirt = Path(__file__).resolve().parents[1] / "data" / "garments" / "skirt.obj"
     for opt, value in (("--spacing", "15"), ("--arrange", "wrap")):
