@@ -92,10 +92,11 @@ class AnimateSettings:
     collider : {"mesh", "bone-spheres", "spheres"}
     pd_iterations : int
         Global iterations a step of the projective solver (``drape.settings.projective``) while the body moves (the
-        still drape's 5): the moving skin's contacts must converge within each step. At 5 the walking suit's
-        trousers caught in the bending knee from frame 10-20 on (the skin 2-80 mm through them, strain p99 up to
-        110 %; 8 steps a frame instead of 4 and exact contact sweeps after the iterations failed as well); at 10
-        every frame meets the bars.
+        still drape's 5): the contact forces against a body part that moves centimetres a step must build up
+        within the step. The walking suit (male_casualsuit02, 30 frames) met the bars to frame 19 at 5 and to
+        frame 21 at 10, then its trousers rode up the shins with the skin through them; with 8 steps a frame,
+        exact contact sweeps after the iterations, the contacts made again within the step or friction on the
+        velocity only it failed sooner (from frames 11-20). Not yet the bars of every frame (docs/patterns.md).
     stick : bool
         The contacts' friction holds the cloth's slip on the skin, not only its velocity
         (:class:`~vfit_engine.sim.solver_settings.ContactSettings`). Off: it holds stretched cloth stretched
