@@ -6,7 +6,7 @@ import click
 from ._common import FILE_UNITS, EngineChoice, check_output_path, handle_errors, interruption, write_json
 from ._outdir import OutdirLock, check_outdir, check_outputs, clear_outputs, wrote_line
 from ._progress import Progress
-from .drape import body_targets, morph_options, user_files
+from .drape import body_targets, morph_options, pattern_only, pattern_options, pattern_setup, user_files
 
 #: Files an animation writes into OUT (removed before a new run writes there).
 #: Exit code when frames have the skin through the cloth (the simulation's fault: quality["simulation_frames"]).
@@ -16,6 +16,7 @@ OUTPUT_GLOBS = ("frame_*.obj", "body_*.obj", "animation.glb", "preview.gif", "re
 
 @click.command()
 @click.argument("garment", type=click.Path(dir_okay=False))
+@pattern_options
 @click.option("--body", "body_path", default=None, type=click.Path(dir_okay=False),
               help="Body to animate (.obj/.ply with hm08 topology). Default: the average body of the garment's "
                    "gender, or one built from the measurement options.")
@@ -60,8 +61,13 @@ OUTPUT_GLOBS = ("frame_*.obj", "body_*.obj", "animation.glb", "preview.gif", "re
 @click.pass_context
 @handle_errors
 def animate(ctx, garment, body_path, motion, speed, joint_map, travel, frames, fps, every, blend, collider, skinning,
-            material, pin, units, preview, outdir, json_path, quiet, gender, height, weight, definition, **girths):
+            material, pin, units, preview, outdir, json_path, quiet, gender, height, weight, definition, seams, spacing,
+            arrange, **girths):
     """Drape GARMENT at rest, then simulate it on the body in motion.
+
+    GARMENT is a garment mesh (.obj/.ply) or a sewing pattern (GarmentCode
+    .json, DXF-AAMA .dxf with --seams): a pattern is sewn round the still body
+    as vfit drape sews it, then moves with it on the same solver.
 
     The garment is draped on the still body first (as vfit drape does), the
     motion is blended in from the A pose over --blend seconds, and the cloth
@@ -79,6 +85,7 @@ def animate(ctx, garment, body_path, motion, speed, joint_map, travel, frames, f
       vfit animate suit.obj --gender male --motion walk --frames 60 --every 20 -o walk/
       vfit animate skirt.obj --motion sit01.bvh --frames 90 --blend 1.5 -o sit/
       vfit animate suit.obj --motion capture.bvh --joint-map cmu.json --travel --preview
+      vfit animate shirt.json --motion walk --frames 30 -o shirt_walk/
     """
     import os
     import time
@@ -98,9 +105,11 @@ def animate(ctx, garment, body_path, motion, speed, joint_map, travel, frames, f
         check_output_path(json_path, (".json",), outdir=outdir)
     inputs = dict(user_files(garment, body_path, pin, material), **{"--motion": None if motion == "walk" else motion,
                                                                     "--joint-map": joint_map})
-    check_outputs(outdir, OUTPUT_GLOBS, inputs, extra_outputs=[json_path])
+    check_outputs(outdir, OUTPUT_GLOBS, dict(inputs, **{"--seams": seams}), extra_outputs=[json_path])
+    pattern_only(ctx, garment, seams=seams, spacing=spacing, arrange=arrange)
     gender_given = ctx.get_parameter_source("gender") != click.core.ParameterSource.DEFAULT
-    o = SimpleNamespace(garment=garment, body_path=body_path, motion=motion, speed=speed, joint_map=joint_map,
+    o = SimpleNamespace(garment=garment, seams=seams, spacing=spacing, arrange=arrange, body_path=body_path,
+                        motion=motion, speed=speed, joint_map=joint_map,
                         travel=travel, frames=frames, fps=fps, every=every, blend=blend, collider=collider,
                         skinning=skinning, material=material, pin=pin, units=units, preview=preview, outdir=outdir,
                         json_path=json_path, quiet=quiet, gender=gender if gender_given else None, weight=weight,
@@ -131,28 +140,38 @@ def _animate(o):
     from vfit_engine.body.model import BodyModel
     from vfit_engine.body.resolve import resolve_body
     from vfit_engine.drape import DrapeSettings, prepare_drape
+    from vfit_engine.drape.settings import projective
     from vfit_engine.drape.setup import garment_gender
     from vfit_engine.garment.garment import load_garment
     from vfit_engine.garment.pins import read_pin_file
     from vfit_engine.io.mesh import write_mesh
+    from vfit_engine.pattern.load import is_pattern
 
     progress = o.progress
     progress.stage(f"reading {os.path.basename(o.garment)} and the motion")
-    g = load_garment(o.garment, units=o.units)
-    for w in g.warnings:  # as vfit drape says them: a unit that makes the garment absurd, an ignored binding
-        click.echo(f"Warning: {o.garment}: {w}", err=True)
-    pins = o.pin if o.pin in ("auto", "none") else read_pin_file(o.pin, g.mesh.n_verts)
     model = BodyModel.load()
     settings = AnimateSettings(fps=o.fps, frames=o.frames, blend_s=o.blend, skinning=o.skinning, collider=o.collider)
     clip = load_clip(model, o.motion, speed=o.speed, fps=o.fps, travel=o.travel, joint_map=o.joint_map,
                      until=o.frames / o.fps)  # the last frame's time (animate.loop.pose_frames)
-    tag_gender = garment_gender(g)
-    progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
-                   f"reading the body {o.body_path}" if o.body_path else "loading the default body")
-    body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or tag_gender or "female", o.definition)
-    dst = DrapeSettings()
-    progress.stage("placing and pinning the garment")
-    setup = prepare_drape(g, body, model, material=o.material, pin=pins, settings=dst)
+    if is_pattern(o.garment):  # sewn and animated on the projective solver (sewing needs it: drape.sew)
+        dst = projective(DrapeSettings())
+        setup, context = pattern_setup(o, model, dst)
+        g, body_description = setup.garment, context["body"]
+        context = dict(pattern=context["pattern"])
+    else:
+        g = load_garment(o.garment, units=o.units)
+        for w in g.warnings:  # as vfit drape says them: a unit that makes the garment absurd, an ignored binding
+            click.echo(f"Warning: {o.garment}: {w}", err=True)
+        pins = o.pin if o.pin in ("auto", "none") else read_pin_file(o.pin, g.mesh.n_verts)
+        tag_gender = garment_gender(g)
+        progress.stage("building the body to the measurements" if o.targets or o.weight is not None else
+                       f"reading the body {o.body_path}" if o.body_path else "loading the default body")
+        body = resolve_body(model, o.body_path, o.targets, o.weight, o.gender or tag_gender or "female",
+                            o.definition)
+        dst = DrapeSettings()
+        progress.stage("placing and pinning the garment")
+        setup = prepare_drape(g, body, model, material=o.material, pin=pins, settings=dst)
+        body_description, context = body.description, {}
     clear_outputs(o.outdir, OUTPUT_GLOBS)
     progress.stage("draping at rest (it ends when the cloth settles)")
     written, bodies, cloth = [], [], []
@@ -196,8 +215,8 @@ def _animate(o):
     progress.done()
     progress.stage("writing animation.glb" + (" and preview.gif" if o.preview else ""))
     written += _write_animation(o, setup, model, np.stack(bodies), np.stack(cloth))
-    context = dict(garment=o.garment, garment_vertices=g.mesh.n_verts, body=body.description, material=o.material,
-                   travel=o.travel, outputs=written, total_time_s=round(time.perf_counter() - o.t_start, 3))
+    context = dict(garment=o.garment, garment_vertices=g.mesh.n_verts, body=body_description, material=o.material,
+                   travel=o.travel, outputs=written, total_time_s=round(time.perf_counter() - o.t_start, 3), **context)
     report = animation_report(drape, anim, settings, limit=setup.material.wearable_stretch, **context)
     write_json(os.path.join(o.outdir, "report.json"), report)
     if o.json_path:

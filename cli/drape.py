@@ -42,6 +42,20 @@ def morph_options(func=None, *, garment=True):
     return func
 
 
+#: ``vfit drape``'s options for a sewing pattern, reused by ``vfit animate`` (:func:`pattern_options`).
+PATTERN_OPTIONS = ("seams", "spacing", "arrange")
+
+
+def pattern_options(func):
+    """Add ``vfit drape``'s options of a sewing pattern (:data:`PATTERN_OPTIONS`: copies of its click parameters)
+    to another command."""
+    params = {p.name: p for p in drape.params}
+    for name in reversed(PATTERN_OPTIONS):
+        func.__click_params__ = getattr(func, "__click_params__", [])
+        func.__click_params__.append(copy.copy(params[name]))
+    return func
+
+
 def body_targets(body_path, girths, height, weight):
     """The measurement targets (name -> m) of ``morph_options``' values (cm); InputError when a body file is
     given with them."""
@@ -196,8 +210,8 @@ def pattern_only(ctx, garment, **given):
     from vfit_engine.pattern.load import is_pattern
 
     source = lambda name: ctx.get_parameter_source(name) != click.core.ParameterSource.DEFAULT
-    if is_pattern(garment):
-        bad = [n for n in MESH_ONLY if source(n) and ctx.params[n] != MESH_ONLY[n]]
+    if is_pattern(garment):  # (of the options the command has)
+        bad = [n for n in MESH_ONLY if n in ctx.params and source(n) and ctx.params[n] != MESH_ONLY[n]]
         if bad:
             raise InputError(f"{garment}: --{bad[0]} is for a garment mesh; a pattern is sewn round the body "
                              "(its seams hold it) and keeps the flat pattern's size")
@@ -292,6 +306,18 @@ def _drape_pattern(o):
     from vfit_engine.body.model import BodyModel
     from vfit_engine.drape import DrapeSettings
     from vfit_engine.drape.settings import projective
+
+    model = BodyModel.load()
+    # sewing closes the seams with the projective solver (drape.sew)
+    settings = projective(DrapeSettings(ground=o.ground, **({} if o.frames is None else dict(max_frames=o.frames))))
+    setup, context = pattern_setup(o, model, settings)
+    return _run(setup, settings, model, o, setup.garment, context)
+
+
+def pattern_setup(o, model, settings):
+    """A sewing pattern's drape set up on its body (``o``: the options of ``vfit drape`` or ``vfit animate``: the
+    pattern file, ``seams``, ``spacing`` (mm or None), ``arrange``, ``material`` and the body's), its warnings said;
+    returns (DrapeSetup, the report's context). ``settings``: projective (sewing needs that solver)."""
     from vfit_engine.drape.sew import prepare_pattern_drape
     from vfit_engine.pattern.load import load
     from vfit_engine.pattern.mesh import DEFAULT_SPACING
@@ -299,18 +325,14 @@ def _drape_pattern(o):
     pat, warnings = load(o.garment, o.seams)
     for w in warnings:  # each names the file
         click.echo(f"Warning: {w}", err=True)
-    model = BodyModel.load()
     body = _body(o, model, None)
-    # sewing closes the seams with the projective solver (drape.sew)
-    settings = projective(DrapeSettings(ground=o.ground, **({} if o.frames is None else dict(max_frames=o.frames))))
     o.progress.stage("meshing the panels, placing them round the body, building the body's collision grid")
     spacing = DEFAULT_SPACING if o.spacing is None else o.spacing / 1000.0
     setup = prepare_pattern_drape(pat, body, model, material=o.material, spacing=spacing, arrange=o.arrange,
                                   settings=settings)
-    g = setup.garment
-    context = dict(garment=o.garment, garment_units="m", garment_vertices=g.mesh.n_verts, garment_gender=None,
-                   warnings=list(warnings), body=body.description, pattern=setup.info["pattern"])
-    return _run(setup, settings, model, o, g, context)
+    context = dict(garment=o.garment, garment_units="m", garment_vertices=setup.garment.mesh.n_verts,
+                   garment_gender=None, warnings=list(warnings), body=body.description, pattern=setup.info["pattern"])
+    return setup, context
 
 
 def _run(setup, settings, model, o, g, context):

@@ -410,13 +410,16 @@ def test_bands_weighed_by_whether_they_act_reach_the_same_rest_sooner():
     assert weighed[1][39] < 0.5 * constant[1][39]  # frame 40: slower by half at least
 
 
-def _friction_reference(x, x0, inv_mass, w_c, gap, lam, nrm, mu, b):
-    """contact_friction in NumPy: the tangential slip since the step's start pulled back, clamped to the cone."""
+def _friction_reference(x, x0, inv_mass, w_c, gap, lam, nrm, mu, b, skin=None, dt=0.0):
+    """contact_friction in NumPy: the tangential slip since the step's start pulled back, clamped to the cone;
+    ``skin`` (n, 3) m/s: the body's velocity under each vertex (NaN where none), the slip taken relative to it."""
     b = b.copy()
     g = np.linalg.norm(gap, axis=1)
     force = w_c * g + np.maximum(lam, 0.0)
     n = np.where((lam > 0)[:, None], nrm, gap / np.where(g > 0, g, 1.0)[:, None])
     d = x - x0
+    if skin is not None:
+        d = d - np.nan_to_num(skin) * dt
     t = d - np.sum(d * n, axis=1, keepdims=True) * n
     tl = np.linalg.norm(t, axis=1)
     act = (inv_mass > 0) & (w_c > 0) & (force > 0) & (tl > 0)
@@ -441,14 +444,54 @@ def test_contact_friction_matches_the_reference(seed):
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     b = rng.normal(size=(n, 3))
     out = b.copy()
-    contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, 0.8, out)
+    still = np.zeros((0, 3)), np.zeros(0)
+    contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, 0.8, *still, 0.01, out)
     np.testing.assert_allclose(out, _friction_reference(x, x0, inv_mass, w_c, gap, lam, nrm, 0.8, b), rtol=1e-12,
                                atol=1e-15)
     # both regimes occur: some vertices stick (s = 1), some slide (s < 1); and without friction nothing changes
     assert not np.array_equal(out, b)
     same = b.copy()
-    contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, 0.0, same)
+    contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, 0.0, *still, 0.01, same)
     np.testing.assert_array_equal(same, b)
+    # on a moving body the slip is relative to the skin under each vertex (none under some: a still body there)
+    dt = 1 / 120
+    weight = np.where(rng.random(n) < 0.7, rng.uniform(0.2, 2.0, n), 0.0)
+    skin = rng.normal(scale=0.2, size=(n, 3))
+    moving = b.copy()
+    contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, 0.8, skin * weight[:, None], weight, dt, moving)
+    expect = _friction_reference(x, x0, inv_mass, w_c, gap, lam, nrm, 0.8, b,
+                                 np.where((weight > 0)[:, None], skin, np.nan), dt)
+    np.testing.assert_allclose(moving, expect, rtol=1e-10, atol=1e-13)
+    assert not np.allclose(moving, out)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_contact_body_velocity_matches_the_reference(seed):
+    """contact_body_velocity: each free vertex's listed points' body velocities, weighed by its barycentric
+    weight, summed (and the weights): a slow loop over the points."""
+    from vfit_engine.kernels.pd import contact_body_velocity
+
+    rng = np.random.default_rng(seed)
+    n, p = 60, 150
+    inv_mass = np.where(rng.random(n) < 0.1, 0.0, 1.0)
+    pt_v = rng.integers(0, n, (p, 3))
+    pt_b = rng.dirichlet([1.0, 1.0, 1.0], p)
+    pt_b[:20] = [1.0, 0.0, 0.0]  # vertex points
+    c_u = rng.normal(size=(p, 3))
+    c_list = rng.permutation(p)
+    n_c = 100
+    push_u, push_w = np.full((n, 3), 9.0), np.full(n, 9.0)  # stale values are overwritten
+    contact_body_velocity(inv_mass, pt_v, pt_b, c_list, n_c, c_u, push_u, push_w)
+    ref_u, ref_w = np.zeros((n, 3)), np.zeros(n)
+    for q in c_list[:n_c]:
+        for k in range(3):
+            v = pt_v[q, k]
+            if pt_b[q, k] > 0 and inv_mass[v] > 0:
+                ref_u[v] += pt_b[q, k] * c_u[q]
+                ref_w[v] += pt_b[q, k]
+    np.testing.assert_allclose(push_u, ref_u, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(push_w, ref_w, rtol=1e-12, atol=1e-14)
+    assert np.all(push_w[inv_mass == 0] == 0) and np.count_nonzero(push_w) > n // 2
 
 
 def test_friction_in_the_solve_holds_cloth_on_a_slope():

@@ -11,10 +11,12 @@
    one grid per frame, the surface where it is at every substep; or spheres fitted to the body that follow
    its bones (:class:`~vfit_engine.animate.colliders.BoneSpheres`);
 3. **the cloth**: the drape's solver (:func:`vfit_engine.drape.loop.build_solver`: the same constraints,
-   sweeps and openings) from the settled drape; each frame is ``substeps`` substeps of the drape's step, the
-   body moved between them (``body_every``) and the pins moved with it; the contacts (inelastic push,
-   friction, contact damping) act on the cloth's velocity relative to the body's where it touches it: skin
-   that moves carries the cloth on it (the seat of a skirt as its wearer sits down);
+   sweeps and openings; :class:`~vfit_engine.sim.solver_pd.SolverPD` when the drape's settings are projective,
+   ``drape.settings.projective``, else :class:`~vfit_engine.sim.solver_verlet.SolverVerlet`, both taking the
+   body's motion through ``body_moved``) from the settled drape; each frame is ``substeps`` substeps of the
+   drape's step, the body moved between them (``body_every``) and the pins moved with it; the contacts
+   (inelastic push, friction, contact damping) act on the cloth's velocity relative to the body's where it
+   touches it: skin that moves carries the cloth on it (the seat of a skirt as its wearer sits down);
 4. **figures** of every frame (:func:`frame_figures`): the cloth surface against the whole body (the drape's
    lattice of samples), yarn strain against the garment as given, contact pressure; and the time each part
    took.
@@ -37,10 +39,13 @@ from vfit_engine.drape.settings import DrapeSettings
 from vfit_engine.errors import InputError
 from vfit_engine.fit.maps import CONTACT_MM
 from vfit_engine.fit.pressure import collider_pressure
+from vfit_engine.sim.solver_settings import PDSettings
 
 #: Colliders of an animation: the exact body near the garment, or spheres fitted to the body that follow its
 #: bones (along the bones, or the medial cover).
 COLLIDERS = ("mesh", "bone-spheres", "spheres")
+#: The step (s) ``AnimateSettings.max_push`` is given per.
+PUSH_DT = 1.0 / 480.0
 
 
 @dataclass(frozen=True)
@@ -58,8 +63,9 @@ class AnimateSettings:
     body_every : int
         Substeps between two moves of the body (1: the body is where it is at every substep).
     max_push : float, m
-        Longest push out of the body per substep: the body moves the cloth by pushing it, up to this much
-        each substep (a walking shin moves ~6 mm per substep of 1/480 s).
+        Longest push out of the body per 1/480 s (:data:`PUSH_DT`, the drape's Verlet substep): the body moves the
+        cloth by pushing it, up to this much each such substep (a walking shin moves ~6 mm per substep of
+        1/480 s); a solver with longer steps (the projective one's 1/120 s) pushes as much further each step.
     max_speed : float, m/s
         Cloth faster than this after a body move is slowed to it (its previous position moved up): cloth
         caught where the body closes on itself (the crease of a hip bent to sitting) is pushed from both
@@ -84,6 +90,13 @@ class AnimateSettings:
         stays within 7.4 % in all 360 frames, and the walking suit's trousers stay up (p99 5.5 %).
     skinning : {"dqs", "lbs"}
     collider : {"mesh", "bone-spheres", "spheres"}
+    pd_iterations : int
+        Global iterations a step of the projective solver (``drape.settings.projective``) while the body moves (the
+        still drape's 5): the contact forces against a body part that moves centimetres a step must build up
+        within the step. The walking suit (male_casualsuit02, 30 frames) met the bars to frame 19 at 5 and to
+        frame 21 at 10, then its trousers rode up the shins with the skin through them; with 8 steps a frame,
+        exact contact sweeps after the iterations, the contacts made again within the step or friction on the
+        velocity only it failed sooner (from frames 11-20). Not yet the bars of every frame (docs/patterns.md).
     stick : bool
         The contacts' friction holds the cloth's slip on the skin, not only its velocity
         (:class:`~vfit_engine.sim.solver_settings.ContactSettings`). Off: it holds stretched cloth stretched
@@ -102,13 +115,14 @@ class AnimateSettings:
     friction: float = 0.5
     skinning: str = "dqs"
     collider: str = "mesh"
+    pd_iterations: int = 10
     stick: bool = False
 
     def __post_init__(self):
         if not (math.isfinite(self.fps) and 1.0 <= self.fps <= 240.0):
             raise InputError(f"fps must be 1..240, got {self.fps!r}")
-        if int(self.frames) < 1 or int(self.body_every) < 1:
-            raise InputError("frames and body_every must be >= 1")
+        if int(self.frames) < 1 or int(self.body_every) < 1 or int(self.pd_iterations) < 1:
+            raise InputError("frames, body_every and pd_iterations must be >= 1")
         for name in ("blend_s", "max_push", "near", "friction"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise InputError(f"animate setting {name} must be >= 0")
@@ -226,6 +240,8 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
         dst = dataclasses.replace(dst, surface_spacing=float(st.surface_spacing))
     dst = dataclasses.replace(dst, contact=dataclasses.replace(dst.contact, stick=bool(st.stick),
                                                                friction=float(st.friction)))
+    if isinstance(dst.solver, PDSettings):  # the solver is the drape's: projective settings, SolverPD
+        dst = dataclasses.replace(dst, solver=dataclasses.replace(dst.solver, iterations=int(st.pd_iterations)))
     _, solver = build_solver(moving, dst)
     sub_dt = 1.0 / (dst.fps * dst.solver.substeps)
     substeps = max(int(round(1.0 / (st.fps * sub_dt))), 1)
@@ -233,7 +249,7 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
     per_chunk = substeps // chunks
     frame_dt = substeps * sub_dt
     state = solver.init_state(sub_dt, pos=rest_pos)
-    solver.max_push = st.max_push
+    solver.max_push = st.max_push * sub_dt / PUSH_DT
     timings["setup"] = time.perf_counter() - t0 - timings["posing"]
     figures = [frame_figures(setup, body, rest_pos, dst.solver.slack)]
     figures[0]["slowed_vertices"] = 0
@@ -260,8 +276,10 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
         if on_frame is not None:
             on_frame(k, bodies[k], state.pos, figures[-1], travel[k])
     timings["simulation"] = timings["posing"] + timings["collision"] + timings["cloth"]
-    info = dict(substeps=substeps, substep_s=sub_dt, frame_s=frame_dt, body_moves_per_frame=chunks,
-                contact_queries=int(solver.contact_queries), collider=body.describe(), clip=clip.description)
+    info = dict(solver=type(solver).__name__, substeps=substeps, substep_s=sub_dt, frame_s=frame_dt,
+                body_moves_per_frame=chunks, contact_queries=int(solver.contact_queries),
+                matrix_refactors=int(getattr(solver, "refactors", 0)), collider=body.describe(),
+                clip=clip.description)
     return AnimationResult(state.pos.copy(), int(st.frames), figures, timings, info,
                            _settled(clip, figures, st, dst))
 

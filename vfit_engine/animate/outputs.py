@@ -93,7 +93,7 @@ def animation_report(drape, anim, settings, limit=None, **context):
         motion=anim.info["clip"], fps=settings.fps, frames=anim.frames, duration_s=anim.frames / settings.fps,
         blend_s=settings.blend_s, skinning=settings.skinning, settled=anim.settled,
         substeps_per_frame=anim.info["substeps"], body_moves_per_frame=anim.info["body_moves_per_frame"],
-        collider=anim.info["collider"],
+        collider=anim.info["collider"], solver=anim.info["solver"], matrix_refactors=anim.info["matrix_refactors"],
         ms_per_frame=dict(simulation=ms["simulation"], posing=ms["posing"], collision=ms["collision"],
                           cloth=ms["cloth"], figures=ms["figures"]),
         collision_share=round(t["collision"] / sim, 4) if sim > 0 else 0.0,

@@ -358,17 +358,46 @@ def soft_push(gap, inv_mass, w_c, h2, push, lam, nrm):
 
 
 @njit
-def contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, friction, b):
+def contact_body_velocity(inv_mass, pt_v, pt_b, c_list, n_c, c_u, push_u, push_w):
+    """The moving body's velocity under each free vertex its listed contact points touch: ``push_u`` (n, 3) the sum
+    of the points' body velocities ``c_u`` (P, 3) m/s weighed by the vertex's barycentric weight in each point,
+    ``push_w`` (n,) the sum of those weights (so ``push_u / push_w`` is the mean velocity, m/s; 0 and 0 for a vertex
+    no point touches). The Gauss-Seidel solver weighs each point's push instead
+    (:func:`vfit_engine.kernels.contact_solve.push_point`); here the contacts push through the global solve, and
+    a point within reach of the skin is the cloth the skin carries."""
+    for i in range(inv_mass.shape[0]):
+        push_u[i, 0] = push_u[i, 1] = push_u[i, 2] = 0.0
+        push_w[i] = 0.0
+    for m in range(n_c):
+        p = c_list[m]
+        for k in range(3):
+            v = pt_v[p, k]
+            w = pt_b[p, k]
+            if w <= 0.0 or inv_mass[v] <= 0.0:
+                continue
+            push_u[v, 0] += w * c_u[p, 0]
+            push_u[v, 1] += w * c_u[p, 1]
+            push_u[v, 2] += w * c_u[p, 2]
+            push_w[v] += w
+
+
+@njit
+def contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, friction, push_u, push_w, dt, b):
     """Coulomb friction in the global step: add to ``b`` (n, 3), for every free vertex the body pushes, the pull
     ``w_c`` back towards where it lay at the step's start ``x0`` along the body (its slip ``d_t``, the move
     ``x - x0`` less its part along the push's normal), at most ``friction`` times its normal force (``w_c |gap|``
     of the soft push plus the Uzawa force ``lam``): ``b -= w_c s d_t``, ``s = min(1, friction f_n / (w_c |d_t|))``.
+
+    On a moving body (``push_w`` not empty, :func:`contact_body_velocity`) the slip is relative to the skin under
+    the vertex: ``d = x - x0 - u dt``, ``u = push_u / push_w`` (m/s) over the step ``dt`` (s), so within the cone the
+    vertex goes where the skin takes it (a sheet on a moving slab is carried at the slab's speed).
 
     Within the cone the vertex's target is where it lay (it sticks); beyond it, it slides by the excess. Friction
     taken on the velocity alone after the step lets cloth held by friction creep downhill by its tangential
     gravity ``g sin(theta) h^2`` every step (a shirt on the shoulders drifted 0.1 mm a frame and never settled)."""
     if friction <= 0.0:
         return
+    moving = push_w.shape[0] > 0
     for i in range(x.shape[0]):
         w = w_c[i]
         if inv_mass[i] <= 0.0 or w <= 0.0:
@@ -382,6 +411,11 @@ def contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, friction, b):
         else:
             nx, ny, nz = gap[i, 0] / g, gap[i, 1] / g, gap[i, 2] / g
         dx, dy, dz = x[i, 0] - x0[i, 0], x[i, 1] - x0[i, 1], x[i, 2] - x0[i, 2]
+        if moving and push_w[i] > 0.0:
+            s = dt / push_w[i]
+            dx -= push_u[i, 0] * s
+            dy -= push_u[i, 1] * s
+            dz -= push_u[i, 2] * s
         dn = dx * nx + dy * ny + dz * nz
         tx, ty, tz = dx - dn * nx, dy - dn * ny, dz - dn * nz
         t = math.sqrt(tx * tx + ty * ty + tz * tz)

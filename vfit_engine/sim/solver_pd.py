@@ -12,6 +12,12 @@ as the Verlet solver takes it (:func:`vfit_engine.kernels.contact_solve.contact_
 travels one edge a sweep: one solve carries it over the garment. Not yet the product's solver: where it stands,
 what was tried and what is next are in ``docs/solver.md``.
 
+A moving body (:meth:`body_moved`, the Verlet solver's interface: :class:`~vfit_engine.sim.body_motion.BodyMotion`):
+the contacts of each step are made against the body where it is then, and the skin's velocity under each vertex
+its contact points touch (:func:`vfit_engine.kernels.pd.contact_body_velocity`) enters the friction of the
+iterations and the contact velocity, so skin that moves carries the cloth on it; the matrix does not depend on the
+body and is not refactored for it.
+
 What lies where: the stretch bands, shear diagonals, bend limits and bend springs and the corner angles (on the
 polygons' own edges) are in the matrix; the hinges (four vertices: they would fill the factor) act as forces
 evaluated at the iterate, with a diagonal that bounds their stiffness (:mod:`vfit_engine.kernels.pd`).
@@ -29,10 +35,12 @@ from vfit_engine.kernels.bending import hinge_scratch
 from vfit_engine.kernels.contact_make import make_contacts
 from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
-from vfit_engine.kernels.pd import chebyshev, contact_forces, contact_friction, pd_rhs, soft_push
+from vfit_engine.kernels.pd import (chebyshev, contact_body_velocity, contact_forces, contact_friction, pd_rhs,
+                                   soft_push)
 from vfit_engine.kernels.pd_matrix import acting_bands, band_matrix
 from vfit_engine.kernels.supernodal_ldl import sn_solve3
 from vfit_engine.sim.bending import hinge_gradient_norms
+from vfit_engine.sim.body_motion import BodyMotion
 from vfit_engine.sim.constraints import KIND_ANGLE, KIND_BEND, build_constraints, stretch_rigidity
 from vfit_engine.sim.contact_points import body_sag, contact_points
 from vfit_engine.sim.linear import SPDFactor
@@ -41,7 +49,7 @@ from vfit_engine.sim.springs import BEND, STRUCTURAL
 from vfit_engine.sim.state import State
 
 
-class SolverPD:
+class SolverPD(BodyMotion):
     """Cloth solver (module docstring); the parameters are :class:`SolverVerlet`'s, ``settings`` a
     :class:`~vfit_engine.sim.solver_settings.PDSettings`."""
 
@@ -360,6 +368,9 @@ class SolverPD:
             self._c_h, self._c_list, self._c_n2, self._c_nq2, self._c_h2, 0, self.points.count, self._body_vel,
             self._sphere_vel, self._c_u, self._body_sag, self._sag_max, self._ground)
         self.contact_queries += queries
+        if self._push_w.shape[0]:  # a moving body (body_moved): the skin's velocity under each touching vertex
+            contact_body_velocity(self._inv_mass, self._pt_v, self._pt_b, self._c_list, n_c, self._c_u, self._push_u,
+                                  self._push_w)
         self._reweight(x)
         factor = self._factor.arrays
         np.copyto(self._xprev, x)
@@ -374,7 +385,7 @@ class SolverPD:
                    self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm,
                    self._hinge_work)
             contact_friction(x, xp, self._inv_mass, self._w_c, self._gap, self._lam, self._nrm,
-                             float(st.friction_in_solve) * float(c.friction), self._b)
+                             float(st.friction_in_solve) * float(c.friction), self._push_u, self._push_w, dt, self._b)
             np.copyto(self._xh, self._b)
             sn_solve3(*factor, self._xh, self._work)
             omega = chebyshev(x, self._xh, self._xprev, k, int(st.chebyshev_delay), float(st.chebyshev_rho), omega)

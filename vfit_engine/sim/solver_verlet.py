@@ -67,6 +67,7 @@ from vfit_engine.kernels.bending import eval_hinge_forces
 from vfit_engine.kernels.cloth import ClothArrays, ContactPoints, ContactState, StepParams, cloth_substeps
 from vfit_engine.kernels.springs import eval_spring_forces
 from vfit_engine.sim.bending import hinge_gradient_norms
+from vfit_engine.sim.body_motion import BodyMotion
 from vfit_engine.sim.constraints import KIND_SHEAR, build_constraints
 from vfit_engine.sim.contact_points import body_sag, contact_points
 from vfit_engine.sim.partition import halves, segment_of, segments
@@ -84,7 +85,7 @@ def _stable_scale(inv_mass, ksum, dsum, dt, safety):
     return scale
 
 
-class SolverVerlet:
+class SolverVerlet(BodyMotion):
     """Cloth solver (module docstring).
 
     Parameters
@@ -219,46 +220,6 @@ class SolverVerlet:
         inside[np.asarray(vertices, dtype=np.int64)] = True
         self._con.admit(pos, inside)
         self._const_dt = None
-
-    # -- a moving body (issue 13: added by the animation's work; vfit_engine.animate) -------------------------
-    def body_moved(self, distance, spheres=None, velocity=None, sphere_velocity=None):
-        """The body moved since the last step: take its grid again (``self.body.grid``; a moving body's collider
-        makes one per frame) and, given ``spheres`` (S, 4) m, the sphere colliders' new centres and radii.
-
-        ``distance`` (m) bounds how far the body moved: a number, or a function of points (k, 3) m giving the
-        bound near each (the contact points are looked up where they were last queried). A point proven clear
-        of the body is proven that much less clear, and one that was touching it queries it afresh where the
-        body moved more than ``contact.reuse`` (the tangent plane it kept moved with the body).
-
-        ``velocity`` (V, 3) m/s, the body mesh's vertices' velocity during the coming steps (the grid's vertex
-        numbering), and ``sphere_velocity`` (S, 3) m/s, the spheres': the contacts' friction, damping and
-        inelastic push then act on the cloth's velocity relative to the body's at the contact, so a moving limb
-        carries the cloth it touches (:mod:`vfit_engine.kernels.cloth`, step 5). Once given, they stay until
-        given again.
-        """
-        if self.body is not None:
-            self._grid = self.body.grid
-        if spheres is not None:
-            spheres = np.array(spheres, dtype=np.float64, order="C")  # its own copy
-            if spheres.shape != self._spheres.shape:
-                raise ValueError(f"spheres must have shape {self._spheres.shape}, got {spheres.shape}")
-            self._spheres = spheres
-        if velocity is not None:
-            velocity = np.ascontiguousarray(velocity, dtype=np.float64)
-            if velocity.ndim != 2 or velocity.shape[1] != 3 or self.body is None:
-                raise ValueError("velocity must have shape (V, 3), the body mesh's vertices'")
-            self._body_vel = velocity
-        if sphere_velocity is not None:
-            sphere_velocity = np.array(sphere_velocity, dtype=np.float64, order="C")
-            if sphere_velocity.shape != (self._spheres.shape[0], 3):
-                raise ValueError(f"sphere_velocity must have shape ({self._spheres.shape[0]}, 3)")
-            self._sphere_vel = sphere_velocity
-        if (self._body_vel.shape[0] or self._sphere_vel.shape[0]) and not self._push_w.shape[0]:
-            n, p = self.model.particle_count, self.points.count
-            self._c_u, self._push_u, self._push_w = np.zeros((p, 3)), np.zeros((n, 3)), np.zeros(n)
-        d = distance(self._p_last) if callable(distance) else float(distance)
-        self._d_last -= d
-        self._d_last[(self._d_last < self._pt_skin + self.contact.reach) & (d > self.contact.reuse)] = -math.inf
 
     # -- constants ------------------------------------------------------------------------
     def effective_constants(self, dt):
