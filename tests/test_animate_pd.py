@@ -211,7 +211,7 @@ def test_animate_sews_a_pattern_and_walks_it_on_the_projective_solver(tmp_path, 
     assert r.exit_code == 0, r.output
     report = json.loads((out / "report.json").read_text())
     assert report["solver"] == "SolverPD" and report["substeps_per_frame"] == 4
-    assert report["pattern"]["panels"] == 4 and len(report["frame_figures"]) == 3
+    assert report["pattern"]["panel_count"] == 4 and len(report["frame_figures"]) == 3
     assert report["quality"]["passed"] and report["rest_drape"]["frames"] == 45
     frame = read_mesh(out / "frame_0002.obj")
     assert [name for name, _ in frame.groups] == ["front", "right", "back", "left"]
