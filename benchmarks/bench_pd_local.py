@@ -132,6 +132,11 @@ def _for(label, args):
     return args[:OLD_ANGLES] + angles + args[OLD_ANGLES:-1]
 
 
+def _forces_for(module, args):
+    """``contact_forces``' arguments as ``module``'s takes them: before session 40 it had no ``release`` (last)."""
+    return args[:module.contact_forces.py_func.__code__.co_argcount]
+
+
 def _copy(args, outputs):
     """``args`` with copies of the arrays the kernel writes (``outputs``); the inputs shared, as the solver's
     iterations share them (copies of every array for each variant would time their cache misses)."""
@@ -161,7 +166,7 @@ def measure(case, last, kernels, repeat):
             args = _copy(rhs, RHS_OUT)
             args[LAG] = lag
             calls[(label, "fresh" if not lag else "lagged")] = (lambda m=module, a=_for(label, args): m.pd_rhs(*a))
-        args = _copy(forces, FORCES_OUT)
+        args = _forces_for(module, _copy(forces, FORCES_OUT))
         calls[(label, "forces")] = (lambda m=module, a=args: m.contact_forces(*a))
         # the outputs of one call each on fresh copies of the same arguments
         for lag in (False, True):
@@ -169,7 +174,7 @@ def measure(case, last, kernels, repeat):
             args[LAG] = lag
             module.pd_rhs(*_for(label, args))
             outputs[(label, lag)] = args[B]
-        args = _copy(forces, FORCES_OUT)
+        args = _forces_for(module, _copy(forces, FORCES_OUT))
         module.contact_forces(*args)
         outputs[(label, "forces")] = args[LAM]
     times = timed(calls, repeat)

@@ -91,7 +91,7 @@ def rhs(x, y, mh2, inv_mass, d_off, dist, corners, springs, hinges, pins, coupli
     return b, push
 
 
-def contact_forces(x, inv_mass, pt_v, pt_b, planes, rho, lam, nrm, plane):
+def contact_forces(x, inv_mass, pt_v, pt_b, planes, rho, lam, nrm, plane, release=False):
     """``lam``, ``nrm``, ``plane`` after one Uzawa update (:func:`vfit_engine.kernels.pd.contact_forces`)."""
     lam, nrm, plane = lam.copy(), nrm.copy(), plane.copy()
     share = {}
@@ -114,6 +114,9 @@ def contact_forces(x, inv_mass, pt_v, pt_b, planes, rho, lam, nrm, plane):
             nrm[i] = normal[i] / np.linalg.norm(normal[i])
             plane[i] = x[i] + share[i] * nrm[i]
             g = share[i]
+        elif lam[i] > 0 and release:
+            lam[i] = 0.0
+            continue
         elif lam[i] > 0:
             g = nrm[i] @ (plane[i] - x[i])
         else:

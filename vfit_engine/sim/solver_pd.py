@@ -368,7 +368,8 @@ class SolverPD(BodyMotion):
             self._c_h, self._c_list, self._c_n2, self._c_nq2, self._c_h2, 0, self.points.count, self._body_vel,
             self._sphere_vel, self._c_u, self._body_sag, self._sag_max, self._ground)
         self.contact_queries += queries
-        if self._push_w.shape[0]:  # a moving body (body_moved): the skin's velocity under each touching vertex
+        moving = self._push_w.shape[0] > 0
+        if moving:  # a moving body (body_moved): the skin's velocity under each touching vertex
             contact_body_velocity(self._inv_mass, self._pt_v, self._pt_b, self._c_list, n_c, self._c_u, self._push_u,
                                   self._push_w)
         self._reweight(x)
@@ -379,7 +380,7 @@ class SolverPD(BodyMotion):
             if st.contact_rho > 0:
                 contact_forces(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
                                self._c_nq2, self._c_h2, self._c_list, n_c, self._rho, self._lam, self._nrm,
-                               self._plane, self._acc_g, self._acc_n, self._acc_w)
+                               self._plane, self._acc_g, self._acc_n, self._acc_w, moving)
             pd_rhs(x, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
                    self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
                    self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm,
