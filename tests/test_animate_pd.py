@@ -220,3 +220,4 @@ def test_animate_sews_a_pattern_and_walks_it_on_the_projective_solver(tmp_path, 
     assert gap.max() < 0.002  # the seams stay shut as the body walks
     body0, body2 = read_mesh(out / "body_0000.obj").verts, read_mesh(out / "body_0002.obj").verts
     assert np.linalg.norm(body2 - body0, axis=1).max() > 0.005  # the body moved
+

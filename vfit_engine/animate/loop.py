@@ -93,10 +93,9 @@ class AnimateSettings:
     pd_iterations : int
         Global iterations a step of the projective solver (``drape.settings.projective``) while the body moves (the
         still drape's 5): the contact forces against a body part that moves centimetres a step must build up
-        within the step. The walking suit (male_casualsuit02, 30 frames) met the bars to frame 19 at 5 and to
-        frame 21 at 10, then its trousers rode up the shins with the skin through them; with 8 steps a frame,
-        exact contact sweeps after the iterations, the contacts made again within the step or friction on the
-        velocity only it failed sooner (from frames 11-20). Not yet the bars of every frame (docs/patterns.md).
+        within the step. The walking suit (male_casualsuit02, 30 frames) meets the bars in every frame at 5 and
+        at 10 (before a vertex that lost its contact points let go of its force, its trousers rode up the shins
+        from frame 19-21 whatever the iterations); the sitting skirt does not yet (docs/patterns.md).
     stick : bool
         The contacts' friction holds the cloth's slip on the skin, not only its velocity
         (:class:`~vfit_engine.sim.solver_settings.ContactSettings`). Off: it holds stretched cloth stretched
