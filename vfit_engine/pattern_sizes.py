@@ -34,7 +34,8 @@ from vfit_engine.pattern.load import load
 from vfit_engine.pattern.mesh import DEFAULT_SPACING
 from vfit_engine.sim.materials import resolve_material
 from vfit_engine.sizes import (SIZE_NAMES, blank_result, collect_sizes, customer_body, drape_and_judge, garment_size,
-                               parse_sizes, recommend, size_body, size_gender, size_run, sizing_customer, submit_sizes)
+                               lap_timer, parse_sizes, recommend, size_body, size_gender, size_run, sizing_customer,
+                               submit_sizes)
 from vfit_engine.worker_pool import default_workers, worker_pool
 
 #: Frame limit of each size's sewn drape: sewing takes its first 40 frames, and the shared patterns settle
@@ -61,13 +62,7 @@ def try_pattern_size(job):
     """
     t0 = time.perf_counter()
     out = blank_result(job)
-    times = out["times_s"]
-
-    def lap(stage, t=[t0]):
-        now = time.perf_counter()
-        times[stage] = round(now - t[0], 3)
-        t[0] = now
-
+    lap = lap_timer(out["times_s"], t0)
     try:
         model = job["model"] if job.get("model") is not None else process_cache.model()
         lap("start")

@@ -193,6 +193,18 @@ def customer_body(model, customer):
                         customer.get("gender") or "female", customer.get("definition", "iso"))
 
 
+def lap_timer(times, t0):
+    """``lap(stage)``: record in ``times`` (dict) the seconds since the last lap, the first since ``t0``."""
+    last = [t0]
+
+    def lap(stage):
+        now = time.perf_counter()
+        times[stage] = round(now - last[0], 3)
+        last[0] = now
+
+    return lap
+
+
 def try_size(job):
     """Grade the garment to one size and drape it on the customer (one worker's job of :func:`try_sizes`).
 
@@ -215,13 +227,7 @@ def try_size(job):
     """
     t0 = time.perf_counter()
     out = blank_result(job)
-    times = out["times_s"]
-
-    def lap(stage, t=[t0]):
-        now = time.perf_counter()
-        times[stage] = round(now - t[0], 3)
-        t[0] = now
-
+    lap = lap_timer(out["times_s"], t0)
     try:
         model = job["model"] if job.get("model") is not None else process_cache.model()
         lap("start")
