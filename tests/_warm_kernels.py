@@ -5,9 +5,10 @@ processes (``make test``: ``pytest -n 2``) then both compile the largest kernels
 cloth kernel, ~40 s; the body collider's, ~13 s), each for itself. ``conftest.pytest_configure`` runs this file
 twice at once before the test processes start, so each kernel compiles once, on one core, through the engine's own
 paths: ``gs`` drapes the demo skirt for two frames (the collider, the cloth kernel, the contacts, the drape's
-metrics); ``rest`` builds a body to measurements (the girth and section kernels), drapes a tiny grid on the
-projective solver (its kernels and the sparse factor) and the preview (its rasteriser) is drawn after the skirt's drape. A kernel it misses
-still compiles where a test first calls it, as before.
+metrics) and draws it (the preview's rasteriser); ``rest`` builds a body to measurements (the girth and section
+kernels) and steps a tiny pinned sheet on the projective solver (its kernels and the sparse factor). A kernel
+they miss still compiles where a test first calls it, as before. Measured on a clean clone, two quiet cores: the
+tests took 456 s after 106 s of this, against 590 s without it (single runs).
 
     python tests/_warm_kernels.py gs|rest
 """
