@@ -1,7 +1,7 @@
 """The projective-dynamics solver under a moving body (SolverPD.body_moved, the animate loop on it): a sheet on a
-moving slab carried at the slab's speed by friction, a sphere moving into a sheet pushing it without
-penetration, the matrix untouched by the body's motion, the animation's figures on both solvers, determinism;
-and ``vfit animate PATTERN``."""
+moving slab carried at the slab's speed by friction, a body gone from under the cloth leaving no ghost of it, a
+sphere moving into a sheet pushing it without penetration, the matrix untouched by the body's motion, the
+animation's figures on both solvers, determinism; and ``vfit animate PATTERN``."""
 import json
 from pathlib import Path
 
@@ -79,6 +79,39 @@ def test_a_sheet_on_a_moving_slab_is_carried_at_its_speed():
     assert moved[True] == pytest.approx(speed * frames / fps - slip, abs=0.003)
     assert abs(moved[False]) < 0.005 and abs(speed_end[False]) < 0.01
     assert end[0] == end[1] != end[2]
+
+
+def test_a_body_gone_from_under_the_cloth_leaves_no_ghost_holding_it():
+    """A sheet resting on a slab that then leaves sideways at 7.5 m/s (25 cm a 1/120 s step, out from under it
+    within two steps) and stops there: the sheet falls under gravity where the slab was (below its top by more
+    than half the free fall's g t^2 / 2 after 0.3 s, air damping and all). Its vertices carried contact forces when
+    they lost their contact points; on a moving body they let go at once (``contact_forces``' ``release``): kept,
+    each one's plane -- where the skin was -- held the sheet up like a ghost of the slab."""
+    import trimesh
+
+    from vfit_engine.sim.contact_points import contact_points
+    from vfit_engine.sim.model import Model
+    from vfit_engine.sim.solver_pd import SolverPD
+    from vfit_engine.sim.solver_settings import ContactSettings, PDSettings
+    from vfit_engine.sim.springs import grid_polygons
+
+    slab = trimesh.creation.box(extents=(0.6, 0.1, 0.6))
+    v0, tris = np.ascontiguousarray(slab.vertices, dtype=np.float64), np.ascontiguousarray(slab.faces)
+    pos, fv, fo = grid_polygons(6, 6, 0.2, 0.2)
+    start = np.ascontiguousarray(pos + [0.0, 0.05 + 0.0021, 0.0])  # on the top face, at the skin (2 mm)
+    model = Model.from_polygons(fv, fo, pos, "cotton")
+    away = np.array([1.0, 0.0, 0.0])
+    col = _moving(v0, tris, away, 1, 0.02)
+    solver = SolverPD(model, PDSettings(), ContactSettings(skin=0.002, friction=0.0), body=col,
+                      points=contact_points(fv, fo, pos, spacing=0.015))
+    state = solver.init_state(1 / 120, pos=start)
+    still = np.zeros((len(v0), 3))
+    _drive(solver, state, col, v0, np.zeros(3), 5, 30, 4, still)  # resting on it
+    assert abs(state.pos[:, 1].mean() - start[:, 1].mean()) < 0.002
+    _drive(solver, state, col, v0, away, 1, 30, 4, np.tile(away * 30, (len(v0), 1)))  # gone
+    _drive(solver, state, col, v0 + away, np.zeros(3), 9, 30, 4, still)  # and stays away
+    t = 10 / 30
+    assert state.pos[:, 1].mean() < start[:, 1].mean() - 0.5 * 9.81 * t * t / 2
 
 
 def test_a_sphere_moving_into_a_sheet_pushes_it_without_penetration():
