@@ -269,6 +269,50 @@ def test_undamped_free_fall_is_exact():
         np.testing.assert_allclose(state.pos, x0 + v0 * t + 0.5 * g * t * t, rtol=0, atol=1e-12)
 
 
+def test_stiffness_damping_leaves_a_falling_sheet_falling_freely():
+    """The damping pulls back only motion of an element's ends relative to each other: a sheet thrown and
+    falling keeps its shape and falls exactly as a free particle does."""
+    pos, fv, fo = grid_polygons(6, 6, 0.3, 0.3)
+    model = Model.from_polygons(fv, fo, np.ascontiguousarray(pos), "cotton")
+    g, v0, dt = np.array([0.0, -9.81, 0.0]), np.array([0.4, 1.0, -0.2]), 1.0 / 120
+    solver = SolverPD(model, PDSettings(gravity=tuple(g), air_damping=0.0, stiffness_damping=0.01))
+    state = solver.init_state(dt, vel=v0)
+    for step in range(1, 41):
+        solver.step(state, dt)
+    t = 40 * dt
+    np.testing.assert_allclose(state.pos, pos + v0 * t + 0.5 * g * t * t, rtol=0, atol=1e-9)
+
+
+def test_stiffness_damping_slows_a_pair_pulling_apart_by_the_implicit_factor():
+    """Two particles of mass m joined by one yarn, flying apart along it inside its free band (no elastic force):
+    one implicit step with the damping weight d = (beta / h) w on the pair takes their relative speed from v to
+    v / (1 + 2 d h^2 / m) -- w the pair's weight, read off the undamped matrix."""
+    from vfit_engine.sim.springs import STRUCTURAL
+
+    m, h, beta, v = 0.01, 1.0 / 120, 0.004, 0.01
+    pos = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]])
+    model = Model.create(pos, [[0, 1]], [0.1], [100.0], [0.0], [STRUCTURAL], [m, m])
+    vel = np.array([[-v, 0.0, 0.0], [v, 0.0, 0.0]])
+
+    def one_step(damping):
+        settings = PDSettings(gravity=(0.0, 0.0, 0.0), air_damping=0.0, band_weight=1.0, iterations=200,
+                              stiffness_damping=damping)
+        solver = SolverPD(model, settings)
+        state = solver.init_state(h, vel=vel)
+        start = state.pos.copy()
+        solver.step(state, h)
+        return solver.matrix(), (state.pos - start)[:, 0] / h
+
+    a0, plain = one_step(0.0)
+    a1, damped = one_step(beta)
+    w = -a0[0, 1]
+    assert w > 0 and -a1[0, 1] == pytest.approx((1 + beta / h) * w, rel=1e-12)
+    np.testing.assert_allclose(plain, [-v, v], rtol=1e-9)  # inside its band the yarn pulls nothing
+    want = 2 * v / (1 + 2 * (beta / h) * w * h * h / m)
+    assert damped[1] - damped[0] == pytest.approx(want, rel=1e-9)
+    assert damped[0] + damped[1] == pytest.approx(0.0, abs=1e-12)  # the pair's momentum is kept
+
+
 def test_the_global_step_is_the_sparse_solve():
     """One iteration from rest: the kernel's LDL^T solve of the assembled matrix is scipy's."""
     from vfit_engine.kernels.supernodal_ldl import sn_solve3

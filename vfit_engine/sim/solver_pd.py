@@ -37,7 +37,7 @@ from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
 from vfit_engine.kernels.pd import (chebyshev, contact_body_velocity, contact_forces, contact_friction, pd_rhs,
                                    soft_push)
-from vfit_engine.kernels.pd_matrix import acting_bands, band_matrix
+from vfit_engine.kernels.pd_matrix import acting_bands, add_damping_target, band_matrix
 from vfit_engine.kernels.supernodal_ldl import sn_solve3
 from vfit_engine.sim.bending import hinge_gradient_norms
 from vfit_engine.sim.body_motion import BodyMotion
@@ -216,17 +216,21 @@ class SolverPD(BodyMotion):
         pi = np.concatenate([e_i, con.corner[ang], con.corner[ang]])
         pj = np.concatenate([e_j, con.i[ang], con.j[ang]])
         pw = np.concatenate([e_w, a_w, a_w])
-        diag = np.where(free, mh2 + d_off + np.bincount(pi, pw, n) + np.bincount(pj, pw, n), 1.0)
+        # stiffness-proportional damping on the cloth's own pair elements (not the seams: a sewing closes them)
+        dw = pw * (float(st.stiffness_damping) / dt)
+        dw[self._seam_at:e_i.size] = 0.0
+        pm = pw + dw
+        diag = np.where(free, mh2 + d_off + np.bincount(pi, pm, n) + np.bincount(pj, pm, n), 1.0)
         diag[free] += self._w_lo
         both = free[pi] & free[pj]
         rows = np.concatenate([pi[both], pj[both], np.arange(n)])
         cols = np.concatenate([pj[both], pi[both], np.arange(n)])
-        vals = np.concatenate([-pw[both], -pw[both], diag])
+        vals = np.concatenate([-pm[both], -pm[both], diag])
         a = sparse.csc_matrix((vals, (rows, cols)), shape=(n, n))
         # a free vertex's coupling to a pinned one moves to the right-hand side (kernels.pd docstring)
         fi = np.concatenate([pi[free[pi] & ~free[pj]], pj[free[pj] & ~free[pi]]])
         fp = np.concatenate([pj[free[pi] & ~free[pj]], pi[free[pj] & ~free[pi]]])
-        fw = np.concatenate([pw[free[pi] & ~free[pj]], pw[free[pj] & ~free[pi]]])
+        fw = np.concatenate([pm[free[pi] & ~free[pj]], pm[free[pj] & ~free[pi]]])
         order = np.argsort(fi, kind="stable")
         pin_ptr = np.concatenate([[0], np.cumsum(np.bincount(fi, minlength=n))]).astype(np.int64)
         # which pair each pin coupling came from (PDSettings.band_weight re-weighs both)
@@ -247,7 +251,8 @@ class SolverPD(BodyMotion):
         self._pairs = dict(i=pi, j=pj, w=pw, band=band, lo=np.concatenate([e_lo, np.zeros(2 * ang.size)]),
                            hi=np.concatenate([e_hi, np.zeros(2 * ang.size)]), both=both, base=np.where(
                                free, mh2 + d_off, 1.0), free=free, pair_of=pair_of,
-                           active=np.ones(pw.size, dtype=np.bool_), at=None)
+                           active=np.ones(pw.size, dtype=np.bool_), at=None, dw=dw,
+                           damped=bool(np.any(dw > 0)))
         return arrays, a
 
     def _reweight(self, x):
@@ -271,14 +276,15 @@ class SolverPD(BodyMotion):
         if not acting_bands(x, pr["i"], pr["j"], pr["lo"], pr["hi"], pr["band"], pr["active"]) and not first:
             return
         band_matrix(pr["i"], pr["j"], pr["w"], pr["active"], float(self.settings.band_weight), pr["free"],
-                    pr["base"], self._w_c, *pr["at"], pr["data"], self._arrays[7], self._arrays[-1], pr["pair_of"])
+                    pr["base"], self._w_c, *pr["at"], pr["data"], self._arrays[7], self._arrays[-1], pr["pair_of"],
+                    pr["dw"])
         self._factor.refactor_values(pr["data"])
         self.refactors += 1
 
     def matrix(self):
         """The global step's matrix as built for the last step size prepared (scipy CSC, N/m): every band at its
-        full weight (``PDSettings.band_weight`` re-weighs the factor as the drape goes), the contact weight on every
-        free vertex, pinned rows the identity."""
+        full weight (``PDSettings.band_weight`` re-weighs the factor as the drape goes) plus its stiffness damping,
+        the contact weight on every free vertex, pinned rows the identity."""
         return self._matrix.copy()
 
     def _prepare(self, dt):
@@ -373,6 +379,9 @@ class SolverPD(BodyMotion):
             contact_body_velocity(self._inv_mass, self._pt_v, self._pt_b, self._c_list, n_c, self._c_u, self._push_u,
                                   self._push_w)
         self._reweight(x)
+        pr = self._pairs
+        if pr["damped"]:
+            add_damping_target(self._y, xp, pr["i"], pr["j"], pr["dw"], self._mh2)
         factor = self._factor.arrays
         np.copyto(self._xprev, x)
         omega = 1.0

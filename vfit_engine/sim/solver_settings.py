@@ -122,6 +122,12 @@ class PDSettings(VerletSettings):
         Share of the contacts' Coulomb coefficient that acts inside the iterations, holding each pushed vertex
         where it lay along the body (:func:`vfit_engine.kernels.pd.contact_friction`); 0: friction on the
         velocity after the step only.
+    stiffness_damping : float, s
+        Rayleigh damping proportional to the matrix's elements: each pair element of the cloth (not a seam) pulls
+        its two ends' relative motion over a step back with ``stiffness_damping / h`` times its weight, implicitly
+        (:func:`vfit_engine.kernels.pd_matrix.add_damping_target`). A motion that moves no element relative to
+        its ends -- a translation -- is not damped; a rotation is (the pair elements have no direction), so too
+        much holds a sliding or swinging garment where it is (docs/solver.md). 0: none.
     """
 
     substeps: int = 2
@@ -135,6 +141,12 @@ class PDSettings(VerletSettings):
     bend_in_matrix: bool = True
     band_weight: float = 0.3
     friction_in_solve: float = 1.0
+    stiffness_damping: float = 0.0
+
+    def __post_init__(self):
+        super().__post_init__()
+        if not (math.isfinite(self.stiffness_damping) and self.stiffness_damping >= 0):
+            raise ValueError("stiffness_damping must be finite and >= 0 (s)")
 
 
 @dataclass(frozen=True)
