@@ -20,7 +20,10 @@ body and is not refactored for it.
 
 What lies where: the stretch bands, shear diagonals, bend limits and bend springs and the corner angles (on the
 polygons' own edges) are in the matrix; the hinges (four vertices: they would fill the factor) act as forces
-evaluated at the iterate, with a diagonal that bounds their stiffness (:mod:`vfit_engine.kernels.pd`).
+evaluated at the iterate, with a diagonal that bounds their stiffness (:mod:`vfit_engine.kernels.pd`). The pair
+elements' stiffness-proportional damping (``PDSettings.stiffness_damping``; a drape's 1 ms) is implicit: its
+weight is in the matrix and its pull towards the step's start in the prediction
+(:func:`vfit_engine.kernels.pd_matrix.add_damping_target`).
 """
 from __future__ import annotations
 
