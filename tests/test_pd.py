@@ -313,6 +313,36 @@ def test_stiffness_damping_slows_a_pair_pulling_apart_by_the_implicit_factor():
     assert damped[0] + damped[1] == pytest.approx(0.0, abs=1e-12)  # the pair's momentum is kept
 
 
+def test_stiffness_damping_on_a_pair_with_a_pinned_end_slows_the_free_one_by_the_implicit_factor():
+    """The same with one end pinned (its coupling moves to the right-hand side, ``pin_w``): the free particle's
+    speed away from the pin goes from v to v / (1 + d h^2 / m), d = (beta / h) w on its diagonal alone (the pin's
+    infinite mass in the reduced mass)."""
+    from vfit_engine.sim.springs import STRUCTURAL
+
+    m, h, beta, v = 0.01, 1.0 / 120, 0.004, 0.01
+    pos = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]])
+    pair = dict(spring_indices=[[0, 1]], spring_rest=[0.1], spring_k=[100.0], spring_kd=[0.0],
+                spring_type=[STRUCTURAL], mass=[m, m])
+    free_pair, pinned = Model.create(pos, **pair), Model.create(pos, pin_indices=[0], **pair)
+
+    def one_step(model, damping):
+        settings = PDSettings(gravity=(0.0, 0.0, 0.0), air_damping=0.0, band_weight=1.0, iterations=200,
+                              stiffness_damping=damping)
+        solver = SolverPD(model, settings)
+        state = solver.init_state(h, vel=np.array([[0.0, 0.0, 0.0], [v, 0.0, 0.0]]))
+        start = state.pos.copy()
+        solver.step(state, h)
+        return solver.matrix(), state.pos - start
+
+    w = -one_step(free_pair, 0.0)[0][0, 1]  # the pair's weight, off the free pair's undamped matrix
+    (a0, plain), (a1, damped) = one_step(pinned, 0.0), one_step(pinned, beta)
+    d = a1[1, 1] - a0[1, 1]
+    assert d == pytest.approx((beta / h) * w, rel=1e-12)
+    assert not plain[0].any() and not damped[0].any()  # the pin stays
+    assert plain[1, 0] / h == pytest.approx(v, rel=1e-9)
+    assert damped[1, 0] / h == pytest.approx(v / (1 + d * h * h / m), rel=1e-9)
+
+
 def test_the_global_step_is_the_sparse_solve():
     """One iteration from rest: the kernel's LDL^T solve of the assembled matrix is scipy's."""
     from vfit_engine.kernels.supernodal_ldl import sn_solve3

@@ -154,8 +154,9 @@ class DrapeSettings:
 #: it whether a drape settled hung on rounding: from three starts 1e-9 m apart a case settled at frame 309, at 215
 #: or not in 400, and 12 of the battery's 36 such drapes did not settle; with it all 36 did, each case within 12
 #: frames of itself (docs/solver.md). 0.5 ms settles the battery sooner but a sewn skirt only at frame 862; 2 ms
-#: settles the drape issue's tight case but leaves the sewn shirt and dress sliding; more holds a garment that
-#: slides or swings where it is (the damping has no direction: it resists a rotation as much as a stretch).
+#: settles the drape issue's tight case but not the sewn shirt and dress (both in an experiment that damped the
+#: seams too); more holds a garment that slides or swings where it is (the damping has no direction: it resists a
+#: rotation as much as a stretch).
 DRAPE_STIFFNESS_DAMPING = 0.001
 
 
