@@ -3,10 +3,12 @@
     python benchmarks/bench_cantilever.py --material cotton [--edge 5] [--json]
     python benchmarks/bench_cantilever.py --material my_fabric.json --edge 10 --json
     python benchmarks/bench_cantilever.py --material denim --step 2.0833 [--softened]
+    python benchmarks/bench_cantilever.py --material silk --solver pd [--edge 10]
 
 ``--step MS`` runs the solver at that step instead of the largest explicit one (2.0833 ms is a drape's:
 1/60 s in 8 substeps); hinges too stiff for it are constraints, or with ``--softened`` softened to its
-bound as the solver did before.
+bound as the solver did before. ``--solver pd`` runs the projective solver
+(:data:`vfit_engine.textile.cantilever.PD_SETTINGS`, its step 1/480 s unless ``--step``).
 
 Prints each try (overhang, tip angle) and the result; with ``--json`` the last line is one JSON object:
 ``bending_length_m`` (the overhang at 41.5 degrees / 2), ``peirce_m`` (c = (B / (w g))^(1/3) of the
@@ -34,6 +36,8 @@ def main(argv=None):
                     help="solver step, ms (default: the largest at which every hinge is explicit)")
     ap.add_argument("--softened", action="store_true",
                     help="soften the hinges too stiff for --step instead of solving them as constraints")
+    ap.add_argument("--solver", choices=("verlet", "pd"), default="verlet",
+                    help="the Gauss-Seidel solver (default) or the projective one")
     parsed = parse_fabric_args(ap, argv, 5.0, (0.5, 25.0), "the strip is 25 mm wide")
     if parsed is None:
         return 2
@@ -42,7 +46,7 @@ def main(argv=None):
         print(f"error: --step {args.step:g} ms: use 0.001-20 ms", file=sys.stderr)
         return 2
     r = bending_length(material, args.edge / 1000.0, dt=None if args.step is None else args.step / 1000.0,
-                       implicit_hinges=not args.softened)
+                       implicit_hinges=not args.softened, solver=args.solver)
     for t in r["tries"]:
         print(f"overhang {100 * t['overhang_m']:6.2f} cm -> tip {t['angle_deg']:5.2f} deg below the edge")
     print(f"{material.name}: bending length {100 * r['bending_length_m']:.2f} cm (Peirce {100 * r['peirce_m']:.2f} cm, "

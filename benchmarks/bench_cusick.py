@@ -3,6 +3,7 @@
     python benchmarks/bench_cusick.py --material silk [--edge 10] [--png top.png] [--json]
     python benchmarks/bench_cusick.py --material my_fabric.json --edge 5 --json
     python benchmarks/bench_cusick.py --material cotton --step 2.0833
+    python benchmarks/bench_cusick.py --material silk --solver pd
 
 ``--step MS`` runs the solver at that step instead of the largest at which every hinge is explicit (2.0833 ms is
 a drape's: 1/60 s in 8 substeps; hinges too stiff for it are then constraints, as in a drape).
@@ -57,6 +58,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0, help="the specimen mesh's jitter (default 0)")
     ap.add_argument("--png", help="draw the drape seen from above into this file")
+    ap.add_argument("--solver", choices=("verlet", "pd"), default="verlet",
+                    help="the Gauss-Seidel solver (default) or the projective one (its step 1/960 s unless --step)")
     ap.add_argument("--step", type=float, default=None, metavar="MS",
                     help="solver step, ms (default: the largest at which every hinge is explicit)")
     parsed = parse_fabric_args(ap, argv, 10.0, (2.0, 30.0), "the specimen is 300 mm across")
@@ -66,7 +69,8 @@ def main(argv=None):
     if args.step is not None and not 0.001 <= args.step <= 20.0:
         print(f"error: --step {args.step:g} ms: use 0.001-20 ms", file=sys.stderr)
         return 2
-    r = drape_test(material, args.edge / 1000.0, seed=args.seed, dt=None if args.step is None else args.step / 1000.0)
+    r = drape_test(material, args.edge / 1000.0, seed=args.seed, dt=None if args.step is None else args.step / 1000.0,
+                   solver=args.solver)
     title = (f"{material.name}: DC {100 * r['drape_coefficient']:.0f} %, {r['nodes']} nodes "
              f"(c {100 * material.bending_length:.2f} cm, {args.edge:g} mm)")
     print(f"{title}; {r['vertices']} vertices, {r['sim_time_s']:.2f} s simulated "

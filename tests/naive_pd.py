@@ -123,3 +123,42 @@ def contact_forces(x, inv_mass, pt_v, pt_b, planes, rho, lam, nrm, plane, releas
             continue
         lam[i] = max(lam[i] + rho[i] * g, 0.0)
     return lam, nrm, plane
+
+
+def energy(x, y, mh2, inv_mass, dist, corners, springs, hinges, w_c, planes, pt_v, pt_b, lam, nrm, x0, friction,
+           damped):
+    """The step's energy at ``x`` (:func:`vfit_engine.kernels.pd_energy.pd_energy`), from the lists of :func:`rhs`
+    and ``damped`` [(i, j, dw)]: inertia, each element at its projection, the hinges' ``k (theta - theta0)^2 / 2``,
+    the damping's ``dw |x_j - x_i|^2 / 2``, the contact weight on each push, Uzawa's ``-lam n . x`` and Coulomb's
+    Huber function of the slip along the push's normal."""
+    from vfit_engine.sim.bending import hinge_angles
+
+    free = inv_mass > 0
+    e = 0.5 * np.sum(mh2[free, None] * (x[free] - y[free]) ** 2)
+    e -= np.sum((lam > 0) * np.einsum("ij,ij->i", nrm, x) * lam)
+    for i, j, lo, hi, w in list(dist) + list(springs):
+        d = x[j] - x[i]
+        e += 0.5 * w * np.sum((d - _band(d, lo, hi)) ** 2)
+    for i, j, k, t_lo, t_hi, w in corners:
+        u, v = x[i] - x[k], x[j] - x[k]
+        pu, pv = corner_targets(u, v, t_lo, t_hi)
+        e += 0.5 * w * (np.sum((u - pu) ** 2) + np.sum((v - pv) ** 2))
+    idx, k, rest = hinges
+    if len(idx):
+        d = (hinge_angles(idx, x) - rest + np.pi) % (2 * np.pi) - np.pi
+        e += 0.5 * np.sum(k * d * d)
+    for i, j, dw in damped:
+        e += 0.5 * dw * np.sum((x[j] - x[i]) ** 2)
+    push = contact_push(x, inv_mass, pt_v, pt_b, planes)
+    for i in np.flatnonzero(free & (w_c > 0)):
+        g = np.linalg.norm(push[i])
+        e += 0.5 * w_c[i] * g * g
+        force = w_c[i] * g + max(lam[i], 0.0)
+        if friction <= 0 or force <= 0:
+            continue
+        n = nrm[i] if lam[i] > 0 else push[i] / g
+        d = x[i] - x0[i]
+        t = np.linalg.norm(d - (d @ n) * n)
+        cone = friction * force / w_c[i]
+        e += w_c[i] * (0.5 * t * t if t <= cone else cone * (t - 0.5 * cone))
+    return e

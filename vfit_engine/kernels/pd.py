@@ -5,7 +5,9 @@ One time step ``h`` of projective dynamics (Liu, Bargteil, O'Brien & Kavan 2013;
 projection of element ``e`` onto its allowed set. Alternating the local step (every ``p_e`` at the current
 iterate) and the global step (``A x = b``, ``A = M / h^2 + sum_e w_e S_e^T S_e`` constant) decreases it
 monotonically. :func:`pd_rhs` is the local step: it builds ``b`` for the global solve
-(:mod:`vfit_engine.sim.solver_pd` factors ``A`` once).
+(:mod:`vfit_engine.sim.solver_pd` factors ``A`` once), and returns that function's value at the iterate, which the
+quasi-Newton iterations' line search takes (:mod:`vfit_engine.kernels.lbfgs`; :func:`contact_friction` returns its
+friction's part).
 
 Elements in ``A`` (``S_e`` the difference of two vertices, so ``A`` has the sparsity of the cloth's edges):
 
@@ -73,7 +75,8 @@ def _band(x, i, j, lo, hi):
 @njit
 def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, w):
     """The corner angle elements (module docstring) into ``b``; ``cos_lo``, ``cos_hi`` are the cosines of the
-    band's smallest and largest angle."""
+    band's smallest and largest angle. Returns their energy ``w (|u - u'|^2 + |v - v'|^2) / 2``, J."""
+    energy = 0.0
     for c in range(ci.shape[0]):
         i, j, k = ci[c], cj[c], ck[c]
         ux, uy, uz = x[i, 0] - x[k, 0], x[i, 1] - x[k, 1], x[i, 2] - x[k, 2]
@@ -85,9 +88,13 @@ def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, w):
         # clearly inside the band (cos_hi < cos < cos_lo by _MARGIN): the arms as they are; else the full test
         lm = ll * _MARGIN
         if not (cos_hi[c] * ll + lm < dot < cos_lo[c] * ll - lm):
-            ux, uy, uz, vx, vy, vz = _corner_targets(ux, uy, uz, vx, vy, vz, qu, qv, dot, ll, cos_lo[c], cos_hi[c])
+            tx, ty, tz, sx, sy, sz = _corner_targets(ux, uy, uz, vx, vy, vz, qu, qv, dot, ll, cos_lo[c], cos_hi[c])
+            energy += 0.5 * w[c] * ((ux - tx) ** 2 + (uy - ty) ** 2 + (uz - tz) ** 2
+                                    + (vx - sx) ** 2 + (vy - sy) ** 2 + (vz - sz) ** 2)
+            ux, uy, uz, vx, vy, vz = tx, ty, tz, sx, sy, sz
         _scatter(b, k, i, w[c], ux, uy, uz)
         _scatter(b, k, j, w[c], vx, vy, vz)
+    return energy
 
 
 @njit(inline="always")
@@ -161,7 +168,9 @@ def _add_push(x, inv_mass, pt_v, pt_b, p, nx, ny, nz, h, gap, count):
 @njit
 def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count):
     """Add ``w_c t`` (module docstring, contacts) of every free vertex into ``b``; ``gap`` (n, 3) m keeps each
-    vertex's push (its target less the iterate), ``count`` (n,) is scratch."""
+    vertex's push (its target less the iterate), ``count`` (n,) is scratch. Returns the pushes' energy
+    ``sum w_c |gap|^2 / 2``, J."""
+    energy = 0.0
     n = x.shape[0]
     for i in range(n):
         gap[i, 0] = gap[i, 1] = gap[i, 2] = 0.0
@@ -181,6 +190,8 @@ def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_lis
         b[i, 0] += w_c[i] * (x[i, 0] + gap[i, 0])
         b[i, 1] += w_c[i] * (x[i, 1] + gap[i, 1])
         b[i, 2] += w_c[i] * (x[i, 2] + gap[i, 2])
+        energy += 0.5 * w_c[i] * (gap[i, 0] * gap[i, 0] + gap[i, 1] * gap[i, 1] + gap[i, 2] * gap[i, 2])
+    return energy
 
 
 @njit(inline="always")
@@ -287,18 +298,33 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
         there.
     hinge_work : (14, HINGE_BLOCK)
         Scratch of the hinges (:func:`vfit_engine.kernels.bending.hinge_scratch`).
+
+    Returns
+    -------
+    float, J
+        The step's energy at ``x`` less the contact forces' (the function whose gradient is ``A x - b``,
+        :mod:`vfit_engine.kernels.lbfgs`): the inertia ``m |x - y|^2 / (2 h^2)``, every element's
+        ``w |S x - p|^2 / 2`` at its projection, the hinges' ``k (theta - theta0)^2 / 2`` and the pushes'
+        ``w_c |gap|^2 / 2``; NaN with ``lag`` (the forces outside ``A`` are not evaluated).
     """
     n = x.shape[0]
+    energy = math.nan
     if not lag:
-        _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f_lag, hinge_work)
+        energy = _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f_lag, hinge_work)
     for i in range(n):
+        dx, dy, dz = x[i, 0] - y[i, 0], x[i, 1] - y[i, 1], x[i, 2] - y[i, 2]
+        energy += 0.5 * mh2[i] * (dx * dx + dy * dy + dz * dz)
         for c in range(3):
             b[i, c] = mh2[i] * y[i, c] + f_lag[i, c]
     for e in range(e_i.shape[0]):
-        px, py, pz = _band(x, e_i[e], e_j[e], e_lo[e], e_hi[e])
-        _scatter(b, e_i[e], e_j[e], e_w[e], px, py, pz)
-    _corners(x, b, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_w)
-    _contact_targets(x, inv_mass, pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count)
+        i, j = e_i[e], e_j[e]
+        px, py, pz = _band(x, i, j, e_lo[e], e_hi[e])
+        dx, dy, dz = x[j, 0] - x[i, 0] - px, x[j, 1] - x[i, 1] - py, x[j, 2] - x[i, 2] - pz
+        energy += 0.5 * e_w[e] * (dx * dx + dy * dy + dz * dz)
+        _scatter(b, i, j, e_w[e], px, py, pz)
+    energy += _corners(x, b, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_w)
+    energy += _contact_targets(x, inv_mass, pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap,
+                               count)
     for i in range(n):
         if lam[i] > 0.0:
             b[i, 0] += lam[i] * nrm[i, 0]
@@ -313,20 +339,25 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
     for q in range(pin_idx.shape[0]):
         p = pin_idx[q]
         b[p, 0], b[p, 1], b[p, 2] = x[p, 0], x[p, 1], x[p, 2]
+    return energy
 
 
 @njit
 def _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f, hinge_work):
-    """``f`` (n, 3) N: ``D x`` plus the forces of the elements outside ``A`` at ``x`` (module docstring)."""
+    """``f`` (n, 3) N: ``D x`` plus the forces of the elements outside ``A`` at ``x`` (module docstring);
+    returns their energy, J."""
     for i in range(x.shape[0]):
         for c in range(3):
             f[i, c] = d_off[i] * x[i, c]
+    energy = 0.0
     for e in range(s_i.shape[0]):
         i, j = s_i[e], s_j[e]
         px, py, pz = _band(x, i, j, s_lo[e], s_hi[e])
         # the spring's force at the iterate: w (p - d) on j, its opposite on i
-        _scatter(f, i, j, s_w[e], px - (x[j, 0] - x[i, 0]), py - (x[j, 1] - x[i, 1]), pz - (x[j, 2] - x[i, 2]))
-    add_elastic_hinge_forces(x, h_i, h_k, h_rest, f, 0, h_i.shape[0], hinge_work)
+        dx, dy, dz = px - (x[j, 0] - x[i, 0]), py - (x[j, 1] - x[i, 1]), pz - (x[j, 2] - x[i, 2])
+        energy += 0.5 * s_w[e] * (dx * dx + dy * dy + dz * dz)
+        _scatter(f, i, j, s_w[e], dx, dy, dz)
+    return energy + add_elastic_hinge_forces(x, h_i, h_k, h_rest, f, 0, h_i.shape[0], hinge_work)
 
 
 @njit
@@ -399,9 +430,13 @@ def contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, friction, push_u, push
 
     Within the cone the vertex's target is where it lay (it sticks); beyond it, it slides by the excess. Friction
     taken on the velocity alone after the step lets cloth held by friction creep downhill by its tangential
-    gravity ``g sin(theta) h^2`` every step (a shirt on the shoulders drifted 0.1 mm a frame and never settled)."""
+    gravity ``g sin(theta) h^2`` every step (a shirt on the shoulders drifted 0.1 mm a frame and never settled).
+
+    Returns the pull's energy, J: ``w_c huber(|d_t|, c)``, quadratic within the cone's ``c = friction f_n / w_c``,
+    linear beyond (for :mod:`vfit_engine.kernels.lbfgs`' line search; with the normal force held)."""
+    energy = 0.0
     if friction <= 0.0:
-        return
+        return energy
     moving = push_w.shape[0] > 0
     for i in range(x.shape[0]):
         w = w_c[i]
@@ -426,7 +461,10 @@ def contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, friction, push_u, push
         t = math.sqrt(tx * tx + ty * ty + tz * tz)
         if t <= 0.0:
             continue
-        s = min(1.0, friction * force / (w * t))
+        cone = friction * force / w
+        s = min(1.0, cone / t)
+        energy += w * (0.5 * t * t if t <= cone else cone * (t - 0.5 * cone))
         b[i, 0] -= w * s * tx
         b[i, 1] -= w * s * ty
         b[i, 2] -= w * s * tz
+    return energy

@@ -195,6 +195,12 @@ class SPDFactor:
         return out.reshape(b.shape)
 
     @property
+    def matrix_arrays(self):
+        """``(indptr, indices, data)``: the matrix factored last, canonical CSC with both triangles (for products
+        with it, e.g. :func:`vfit_engine.kernels.lbfgs.gradient`); arrays of the factor's own, not to be written."""
+        return self._pattern[0], self._pattern[1], self._data
+
+    @property
     def n(self):
         """Order of the matrix."""
         return int(self._d.shape[0])

@@ -24,6 +24,14 @@ evaluated at the iterate, with a diagonal that bounds their stiffness (:mod:`vfi
 elements' stiffness-proportional damping (``PDSettings.stiffness_damping``; a drape's 1 ms) is implicit: its
 weight is in the matrix and its pull towards the step's start in the prediction
 (:func:`vfit_engine.kernels.pd_matrix.add_damping_target`).
+
+Quasi-Newton iterations (``PDSettings.history``; :meth:`_iterate_qn`, :mod:`vfit_engine.kernels.lbfgs`): the plain
+iterations converge in the cloth's turning modes at ~1e-4 an iteration (the matrix's pair elements have no
+direction), and a step that stops after a few ends where they have just undone its ``g h^2``: a still state that is
+not the equilibrium (a hinge's wing at 61.9 deg where it rests at 1.07). L-BFGS on the same matrix learns those
+modes from the iterates; the iterations start from the prediction without ``g h^2``, so that a still state is one
+the iterations keep -- the equilibrium. ``PDSettings.edge_compression`` moves the bend springs' compression share
+onto the edges, where it does not resist bending (docs/solver.md).
 """
 from __future__ import annotations
 
@@ -38,6 +46,7 @@ from vfit_engine.kernels.bending import hinge_scratch
 from vfit_engine.kernels.contact_make import make_contacts
 from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
+from vfit_engine.kernels.lbfgs import dot3, first_loop, gradient, pair_energy, push_pair, second_loop, uzawa_energy
 from vfit_engine.kernels.pd import (chebyshev, contact_body_velocity, contact_forces, contact_friction, pd_rhs,
                                    soft_push)
 from vfit_engine.kernels.pd_matrix import acting_bands, add_damping_target, band_matrix
@@ -47,6 +56,7 @@ from vfit_engine.sim.body_motion import BodyMotion
 from vfit_engine.sim.constraints import KIND_ANGLE, KIND_BEND, build_constraints, stretch_rigidity
 from vfit_engine.sim.contact_points import body_sag, contact_points
 from vfit_engine.sim.linear import SPDFactor
+from vfit_engine.sim.materials import COMPRESSION_SHARE
 from vfit_engine.sim.solver_settings import ContactSettings, PDSettings
 from vfit_engine.sim.springs import BEND, STRUCTURAL
 from vfit_engine.sim.state import State
@@ -81,6 +91,9 @@ class SolverPD(BodyMotion):
         self._pin_from = np.zeros((model.pin_count, 3))
         self._no_pins, self._no_pin_pos = np.zeros(0, np.int64), np.zeros((0, 3))
         self._y, self._xh, self._xprev, self._b = (np.zeros((n, 3)) for _ in range(4))
+        self._g, self._g0, self._g0_old = (np.zeros((n, 3)) for _ in range(3))
+        #: how often the quasi-Newton iterations dropped their history (PDSettings.history; _iterate_qn)
+        self.qn_restarts = 0
         self._gap, self._push, self._zero_f = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
         self._count = np.zeros(n)
         self._f_lag = np.zeros((n, 3))
@@ -160,6 +173,8 @@ class SolverPD(BodyMotion):
     def weigh(self, gravity=1.0):
         """Scale gravity by ``gravity`` from the next step on (0 while a sewing closes the seams)."""
         self._gravity = np.ascontiguousarray(np.asarray(self.settings.gravity, dtype=np.float64) * float(gravity))
+        if self._dt is not None:
+            self._g_h2 = np.where((self._inv_mass > 0)[:, None], self._gravity * (self._dt * self._dt), 0.0)
 
     def admit(self, pos, vertices):
         """Widen the bands among ``vertices`` to admit their lengths at ``pos`` (as :meth:`SolverVerlet.admit`)."""
@@ -184,13 +199,7 @@ class SolverPD(BodyMotion):
         # their diagonal slows every smooth mode (bend_in_matrix)
         soft = dist & (con.kind == KIND_BEND) & (not st.bend_in_matrix)
         in_a = dist & ~soft & (con.alpha > 0)
-        bend_sp = np.flatnonzero((m.spring_type == BEND) & (m.spring_k > 0))
-        e_i = np.concatenate([con.i[in_a], m.spring_indices[bend_sp, 0]]) if st.bend_in_matrix else con.i[in_a]
-        e_j = np.concatenate([con.j[in_a], m.spring_indices[bend_sp, 1]]) if st.bend_in_matrix else con.j[in_a]
-        e_lo = np.concatenate([con.lo[in_a], m.spring_rest[bend_sp]]) if st.bend_in_matrix else con.lo[in_a]
-        e_hi = np.concatenate([con.hi[in_a], m.spring_rest[bend_sp]]) if st.bend_in_matrix else con.hi[in_a]
-        e_w = np.concatenate([1.0 / con.alpha[in_a], m.spring_k[bend_sp]]) if st.bend_in_matrix \
-            else 1.0 / con.alpha[in_a]
+        (e_i, e_j, e_lo, e_hi, e_w), bend_sp = self._distance_elements(in_a)
         seam_i, seam_j, seam_hi, seam_w = self._seams
         self._seam_at = e_i.size
         if seam_i.size:  # the seams join the pair elements (sew)
@@ -199,8 +208,6 @@ class SolverPD(BodyMotion):
             e_w = np.concatenate([e_w, np.full(seam_i.size, seam_w * k_typ)])
         ang = np.flatnonzero(con.kind == KIND_ANGLE)
         a_w = np.full(ang.size, st.angle_weight * k_typ)
-        if st.bend_in_matrix:
-            bend_sp = bend_sp[:0]
         s_i = np.concatenate([con.i[soft], m.spring_indices[bend_sp, 0]]).astype(np.int64)
         s_j = np.concatenate([con.j[soft], m.spring_indices[bend_sp, 1]]).astype(np.int64)
         s_lo = np.concatenate([con.lo[soft], m.spring_rest[bend_sp]])
@@ -258,6 +265,24 @@ class SolverPD(BodyMotion):
                            damped=bool(np.any(dw > 0)))
         return arrays, a
 
+    def _distance_elements(self, in_a):
+        """The distance elements of the matrix as ``(i, j, lo, hi, w)``: the constraints ``in_a`` and the cloth's
+        compression springs -- on the edges (``PDSettings.edge_compression``) or the bend springs
+        (``bend_in_matrix``) -- and the bend springs left as forces outside it."""
+        m, con, st = self.model, self._con, self.settings
+        parts = [(con.i[in_a], con.j[in_a], con.lo[in_a], con.hi[in_a], 1.0 / con.alpha[in_a])]
+        bend = np.flatnonzero((m.spring_type == BEND) & (m.spring_k > 0))
+        if st.edge_compression:  # free when longer than at rest
+            e = np.flatnonzero((m.spring_type == STRUCTURAL) & (m.spring_k > 0))
+            parts.append((m.spring_indices[e, 0], m.spring_indices[e, 1], m.spring_rest[e], np.full(e.size, np.inf),
+                          COMPRESSION_SHARE * m.spring_k[e]))
+            bend = bend[:0]
+        elif st.bend_in_matrix:
+            parts.append((m.spring_indices[bend, 0], m.spring_indices[bend, 1], m.spring_rest[bend],
+                          m.spring_rest[bend], m.spring_k[bend]))
+            bend = bend[:0]
+        return [np.concatenate(c) for c in zip(*parts)], bend
+
     def _reweight(self, x):
         """With ``PDSettings.band_weight < 1``: the bands in the matrix weighed by whether they act at ``x`` (a yarn
         inside its free band has no stiffness; its full weight in the matrix holds the cloth where it is at each
@@ -299,6 +324,11 @@ class SolverPD(BodyMotion):
         self._w_c = np.where(self._inv_mass > 0, self._w_lo, 0.0)
         self._rho = self.settings.contact_rho * (self._mh2 + self._w_c)
         self._dt = dt
+        n, m = self.model.particle_count, int(self.settings.history)
+        self._qn_s, self._qn_t = np.zeros((m, n, 3)), np.zeros((m, n, 3))
+        self._qn_rho, self._qn_alpha = np.zeros(m), np.zeros(m)
+        self._qn_at = [m - 1, 0]  # the newest slot, the pairs held (a new step size starts afresh)
+        self._g_h2 = np.where((self._inv_mass > 0)[:, None], self._gravity * (dt * dt), 0.0)
 
     @property
     def constraint_count(self):
@@ -385,7 +415,27 @@ class SolverPD(BodyMotion):
         pr = self._pairs
         if pr["damped"]:
             add_damping_target(self._y, xp, pr["i"], pr["j"], pr["dw"], self._mh2)
+        if int(st.history) > 0:  # the iterations start without the step's g h^2 (PDSettings.history)
+            np.subtract(x, self._g_h2, out=x)
         factor = self._factor.arrays
+        if int(st.history) > 0:
+            self._iterate_qn(x, xp, dt, n_c, moving, factor)
+        else:
+            self._iterate(x, xp, dt, n_c, moving, factor)
+        soft_push(self._gap, self._inv_mass, self._w_c, dt * dt, self._push, self._lam, self._nrm)
+        for _ in range(int(st.contact_sweeps)):
+            solve_contacts(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_list, 0, n_c,
+                           self._push, self._c_n2, self._c_nq2, self._c_h2, self._c_live, False, self._c_u,
+                           self._push_u, self._push_w)
+        for col in self.colliders:
+            col.project(x, xp, self._inv_mass)
+        contact_velocity(x, xp, self._inv_mass, self._push, float(c.friction),
+                         math.exp(-float(c.damping) * dt), self._hot, self._push_u, self._push_w, dt, bool(c.stick))
+
+    def _iterate(self, x, xp, dt, n_c, moving, factor):
+        """The plain iterations of a step: Uzawa's contact forces, the local step, the global solve
+        (Chebyshev-accelerated with ``PDSettings.chebyshev_rho``)."""
+        st, c = self.settings, self.contact
         np.copyto(self._xprev, x)
         omega = 1.0
         for k in range(int(st.iterations)):
@@ -402,15 +452,64 @@ class SolverPD(BodyMotion):
             np.copyto(self._xh, self._b)
             sn_solve3(*factor, self._xh, self._work)
             omega = chebyshev(x, self._xh, self._xprev, k, int(st.chebyshev_delay), float(st.chebyshev_rho), omega)
-        soft_push(self._gap, self._inv_mass, self._w_c, dt * dt, self._push, self._lam, self._nrm)
-        for _ in range(int(st.contact_sweeps)):
-            solve_contacts(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_list, 0, n_c,
-                           self._push, self._c_n2, self._c_nq2, self._c_h2, self._c_live, False, self._c_u,
-                           self._push_u, self._push_w)
-        for col in self.colliders:
-            col.project(x, xp, self._inv_mass)
-        contact_velocity(x, xp, self._inv_mass, self._push, float(c.friction),
-                         math.exp(-float(c.damping) * dt), self._hot, self._push_u, self._push_w, dt, bool(c.stick))
+
+    def _iterate_qn(self, x, xp, dt, n_c, moving, factor):
+        """The quasi-Newton iterations of a step (``PDSettings.history``, :mod:`vfit_engine.kernels.lbfgs`): each
+        takes the gradient ``A x - b`` at the iterate (the forces outside the matrix evaluated there too) and moves
+        by the L-BFGS step on ``A^-1``; the last takes the plain step (it descends, and no later iteration would
+        check it). A quasi-Newton move is checked by the next iteration's local step, which gives the energy at
+        its end for nothing (Armijo's test, the contact forces held): one that did not lower it is undone and the
+        history dropped (its pairs no longer fit the cloth), as is a direction that does not descend; the plain
+        step follows."""
+        st, c, pr = self.settings, self.contact, self._pairs
+        s_, t_, rho, alpha, at = self._qn_s, self._qn_t, self._qn_rho, self._qn_alpha, self._qn_at
+        indptr, indices, data = self._factor.matrix_arrays
+        g, g0, g0_old, r, x_old = self._g, self._g0, self._g0_old, self._xh, self._xprev
+        last = int(st.iterations) - 1
+        gr = e_ref = 0.0  # the last move's g . r (0: a plain one, not checked) and the energy it started from
+        for k in range(last + 1):
+            held = uzawa_energy(self._lam, self._nrm, x)
+            if st.contact_rho > 0:
+                contact_forces(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
+                               self._c_nq2, self._c_h2, self._c_list, n_c, self._rho, self._lam, self._nrm,
+                               self._plane, self._acc_g, self._acc_n, self._acc_w, moving)
+            e = pd_rhs(x, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
+                       self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
+                       self._count, self._f_lag, False, self._lam, self._nrm, self._hinge_work)
+            e += contact_friction(x, xp, self._inv_mass, self._w_c, self._gap, self._lam, self._nrm,
+                                  float(st.friction_in_solve) * float(c.friction), self._push_u, self._push_w, dt,
+                                  self._b)
+            if pr["damped"]:
+                e += pair_energy(x, pr["i"], pr["j"], pr["dw"])
+            # (rounding allowed for: near the rest the energy's change is at its last digits)
+            if gr > 0.0 and not e + held <= e_ref - 1e-4 * gr + 1e-12 * abs(e_ref):
+                self.qn_restarts += 1  # undone, and the plain step from where it started
+                at[1] = 0
+                gr = 0.0
+                np.copyto(x, x_old)
+                continue
+            e_ref = e + uzawa_energy(self._lam, self._nrm, x)
+            gradient(indptr, indices, data, x, self._b, self._lam, self._nrm, g, g0)
+            if k > 0:
+                at[0], at[1] = push_pair(x, x_old, g0, g0_old, s_, t_, rho, at[0], at[1])
+            np.copyto(r, g)
+            quasi = at[1] > 0 and k < last
+            if quasi:
+                first_loop(r, s_, t_, rho, alpha, at[0], at[1])
+            sn_solve3(*factor, r, self._work)
+            gr = 0.0
+            if quasi:
+                second_loop(r, s_, t_, rho, alpha, at[0], at[1])
+                gr = dot3(g, r)
+                if not gr > 0.0:  # no descent direction: the plain step, afresh
+                    self.qn_restarts += 1
+                    at[1] = 0
+                    gr = 0.0
+                    np.copyto(r, g)
+                    sn_solve3(*factor, r, self._work)
+            np.copyto(x_old, x)
+            np.copyto(g0_old, g0)
+            np.subtract(x, r, out=x)
 
     # -- diagnostics ----------------------------------------------------------------------------
     def max_stretch(self, state, spring_type=0):

@@ -13,6 +13,7 @@ hinge on the platform's edge lumps the curvature of the half cells either side o
 strip bends from half a cell behind its last pinned column (measured: with the clamp taken at 0 the
 droop converges to the elastica's only as ``h``, 49.4 degrees at 5 mm and 45.7 at 2.5 mm for 41.5; from
 ``-h / 2``, 41.2 and 41.7). The overhang hangs under gravity in :class:`vfit_engine.sim.solver_verlet.SolverVerlet`
+(or, ``solver="pd"``, the projective solver: :func:`vfit_engine.textile.settle.specimen_solver`)
 until it is still, and the overhang is searched until the tip's angle is 41.5 +- 0.1 degrees (each
 try's next overhang from Peirce's law through the last, as a lab slides the strip on).
 """
@@ -24,13 +25,17 @@ import time
 import numpy as np
 
 from vfit_engine.sim.model import Model
-from vfit_engine.sim.solver_verlet import SolverVerlet, VerletSettings
+from vfit_engine.sim.solver_verlet import VerletSettings
 from vfit_engine.sim.springs import grid_polygons
-from vfit_engine.textile.settle import fall_still
+from vfit_engine.textile.settle import fall_still, specimen_solver
 
 #: The test's angle, degrees, and the strip's width, m.
 ANGLE = 41.5
 WIDTH = 0.025
+#: The projective solver's step in the test, s: a light strip's droop is slow at longer ones (its kinked bands
+#: drop the quasi-Newton history most steps), and the stillness test stops it on its way (a 40 g/m^2 fabric's
+#: tip at 9.6-73 deg for overhangs 2.8-4.9 cm at 1/480 s, erratically; silk +15 % at 1/120 s).
+PD_STEP = 1.0 / 1920.0
 
 
 def peirce_overhang(c, angle=ANGLE):
@@ -50,12 +55,14 @@ def _strip_model(material, overhang, edge):
     return Model.from_polygons(fv, fo, pos, material, pin_indices=pins), h
 
 
-def droop(material, overhang, edge, max_time=20.0, still=2e-4, dt=None, implicit_hinges=True):
+def droop(material, overhang, edge, max_time=20.0, still=2e-4, dt=None, implicit_hinges=True, solver="verlet"):
     """The tip's angle below the horizontal (degrees) of a strip ``overhang`` (m) over the edge, meshed at
     ``edge`` (m), once it is still (every vertex slower than ``still`` m/s over 0.1 s).
 
     ``dt`` (s): the step (default: the largest at which every hinge is explicit); beyond it the stiff hinges
-    are constraints, or with ``implicit_hinges`` False softened (:class:`VerletSettings`).
+    are constraints, or with ``implicit_hinges`` False softened (:class:`VerletSettings`). ``solver`` "pd": the
+    projective solver (:func:`~vfit_engine.textile.settle.specimen_solver`, default step :data:`PD_STEP`;
+    ``implicit_hinges`` does not apply).
 
     Returns
     -------
@@ -65,10 +72,12 @@ def droop(material, overhang, edge, max_time=20.0, still=2e-4, dt=None, implicit
         (shares of the hinges; both 0: the rigidity is the material's explicit force everywhere).
     """
     model, h = _strip_model(material, overhang, edge)
+    if solver == "pd" and dt is None:
+        dt = PD_STEP
     # damping near critical for the strip's first mode (omega ~ 3.5 sqrt(g / l) at the test's droop)
-    settings = VerletSettings(air_damping=2.0 * 3.5 * math.sqrt(9.81 / overhang), shear_limit_deg=None,
-                              bend_limit=None, implicit_hinges=implicit_hinges)
-    solver = SolverVerlet(model, settings)
+    solver = specimen_solver(model, solver, VerletSettings(air_damping=2.0 * 3.5 * math.sqrt(9.81 / overhang),
+                                                           shear_limit_deg=None, bend_limit=None,
+                                                           implicit_hinges=implicit_hinges))
     state, dt, t, settled = fall_still(solver, 1e-3, max_time, still, calm=5, dt=dt)
     tip = state.pos[np.isclose(model.rest_pos[:, 0], model.rest_pos[:, 0].max())]
     x, y = tip[:, 0].mean() + 0.5 * h, tip[:, 1].mean()
@@ -77,10 +86,11 @@ def droop(material, overhang, edge, max_time=20.0, still=2e-4, dt=None, implicit
     return math.degrees(math.atan2(-y, x)), info
 
 
-def bending_length(material, edge=0.005, tolerance=0.1, max_tries=8, dt=None, implicit_hinges=True):
+def bending_length(material, edge=0.005, tolerance=0.1, max_tries=8, dt=None, implicit_hinges=True,
+                   solver="verlet"):
     """The cantilever test of ``material`` meshed at ``edge`` (m) (module docstring), at the step ``dt`` (s;
     default the largest at which every hinge is explicit) with hinges beyond it solved as constraints or,
-    ``implicit_hinges`` False, softened (:func:`droop`).
+    ``implicit_hinges`` False, softened, on ``solver`` (:func:`droop`).
 
     Returns
     -------
@@ -94,7 +104,7 @@ def bending_length(material, edge=0.005, tolerance=0.1, max_tries=8, dt=None, im
     l = peirce_overhang(c)
     tries = []
     for _ in range(max_tries):
-        angle, info = droop(material, l, edge, dt=dt, implicit_hinges=implicit_hinges)
+        angle, info = droop(material, l, edge, dt=dt, implicit_hinges=implicit_hinges, solver=solver)
         tries.append(dict(overhang_m=l, angle_deg=angle))
         if abs(angle - ANGLE) <= tolerance or not 0.5 < angle < 89.5:
             break
