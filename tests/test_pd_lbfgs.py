@@ -10,7 +10,8 @@ from scipy import sparse
 import naive_pd
 from test_pd import I64, _a, _cloth, _contact_arrays, _elements, _planes, _points
 from vfit_engine.kernels.bending import hinge_scratch
-from vfit_engine.kernels.lbfgs import dot3, first_loop, gradient, pair_energy, push_pair, second_loop, uzawa_energy
+from vfit_engine.kernels.lbfgs import (dot3, first_loop, gradient, max_move, pair_energy, push_pair, second_loop,
+                                      uzawa_energy)
 from vfit_engine.kernels.pd import contact_friction, pd_rhs
 from vfit_engine.sim.model import Model
 from vfit_engine.sim.solver_pd import SolverPD
@@ -31,6 +32,7 @@ def test_gradient_is_the_matrix_product_less_the_right_hand_side(seed):
     np.testing.assert_allclose(g, a @ x - b, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(g0, g + np.maximum(lam, 0)[:, None] * nrm, rtol=1e-12, atol=1e-12)
     assert dot3(g, b) == pytest.approx(float(np.sum(g * b)), rel=1e-12)
+    assert max_move(b) == pytest.approx(float(np.linalg.norm(b, axis=1).max()), rel=1e-12)
 
 
 def _two_loop(g, pairs, solve):
@@ -212,6 +214,8 @@ def test_a_hinge_rests_at_its_analytic_angle(dt):
 def test_history_is_validated():
     with pytest.raises(ValueError, match="history"):
         PDSettings(history=-1)
+    with pytest.raises(ValueError, match="qn_move_limit"):
+        PDSettings(history=5, qn_move_limit=0.0)
 
 
 def test_a_step_from_pairs_that_no_longer_fit_falls_back_to_the_plain_one():

@@ -241,11 +241,9 @@ def run_animation(setup, rest_pos, clip, model, settings=None, drape_settings=No
                                                                friction=float(st.friction)))
     if isinstance(dst.solver, PDSettings):  # the solver is the drape's: projective settings, SolverPD
         # without the still drape's stiffness damping: it resists a rotation as much as a stretch, and the cloth
-        # lagged the swinging legs (the walk: 1 frame over the bars, 7.2 mm deep, against none and 0.5 mm); and
-        # with plain iterations: the quasi-Newton ones' pairs, learnt on the body where it was, threw the walking
-        # suit through it (22 of 30 frames over the bars, 103 mm deep; docs/solver.md)
+        # lagged the swinging legs (the walk: 1 frame over the bars, 7.2 mm deep, against none and 0.5 mm)
         dst = dataclasses.replace(dst, solver=dataclasses.replace(dst.solver, iterations=int(st.pd_iterations),
-                                                                  stiffness_damping=0.0, history=0))
+                                                                  stiffness_damping=0.0))
     _, solver = build_solver(moving, dst)
     sub_dt = 1.0 / (dst.fps * dst.solver.substeps)
     substeps = max(int(round(1.0 / (st.fps * sub_dt))), 1)

@@ -138,3 +138,14 @@ def pair_energy(x, pi, pj, w):
             dx, dy, dz = x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2]
             e += 0.5 * w[q] * (dx * dx + dy * dy + dz * dz)
     return e
+
+
+@njit
+def max_move(r):
+    """The largest vertex move ``|r_i|`` (m) of (n, 3) ``r``."""
+    m = 0.0
+    for i in range(r.shape[0]):
+        q = r[i, 0] * r[i, 0] + r[i, 1] * r[i, 1] + r[i, 2] * r[i, 2]
+        if q > m:
+            m = q
+    return m ** 0.5

@@ -46,7 +46,8 @@ from vfit_engine.kernels.bending import hinge_scratch
 from vfit_engine.kernels.contact_make import make_contacts
 from vfit_engine.kernels.contact_solve import contact_velocity, solve_contacts
 from vfit_engine.kernels.integrate import advance_in_place, move_pins
-from vfit_engine.kernels.lbfgs import dot3, first_loop, gradient, pair_energy, push_pair, second_loop, uzawa_energy
+from vfit_engine.kernels.lbfgs import (dot3, first_loop, gradient, max_move, pair_energy, push_pair, second_loop,
+                                      uzawa_energy)
 from vfit_engine.kernels.pd import (chebyshev, contact_body_velocity, contact_forces, contact_friction, pd_rhs,
                                    soft_push)
 from vfit_engine.kernels.pd_matrix import acting_bands, add_damping_target, band_matrix
@@ -459,13 +460,14 @@ class SolverPD(BodyMotion):
         by the L-BFGS step on ``A^-1``; the last takes the plain step (it descends, and no later iteration would
         check it). A quasi-Newton move is checked by the next iteration's local step, which gives the energy at
         its end for nothing (Armijo's test, the contact forces held): one that did not lower it is undone and the
-        history dropped (its pairs no longer fit the cloth), as is a direction that does not descend; the plain
-        step follows."""
+        history dropped (its pairs no longer fit the cloth), as is a direction that does not descend or, under a
+        moving body, one that moves a vertex more than ``PDSettings.qn_move_limit``; the plain step follows."""
         st, c, pr = self.settings, self.contact, self._pairs
         s_, t_, rho, alpha, at = self._qn_s, self._qn_t, self._qn_rho, self._qn_alpha, self._qn_at
         indptr, indices, data = self._factor.matrix_arrays
         g, g0, g0_old, r, x_old = self._g, self._g0, self._g0_old, self._xh, self._xprev
         last = int(st.iterations) - 1
+        limit = float(st.qn_move_limit) if moving else math.inf
         gr = e_ref = 0.0  # the last move's g . r (0: a plain one, not checked) and the energy it started from
         for k in range(last + 1):
             held = uzawa_energy(self._lam, self._nrm, x)
@@ -501,7 +503,8 @@ class SolverPD(BodyMotion):
             if quasi:
                 second_loop(r, s_, t_, rho, alpha, at[0], at[1])
                 gr = dot3(g, r)
-                if not gr > 0.0:  # no descent direction: the plain step, afresh
+                # no descent direction, or under a moving body a move beyond what the step's contacts see: plain
+                if not gr > 0.0 or max_move(r) > limit:
                     self.qn_restarts += 1
                     at[1] = 0
                     gr = 0.0
