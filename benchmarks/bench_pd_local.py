@@ -123,10 +123,11 @@ def suit_case(frames):
     return recorded_calls(lambda: run_drape(setup, settings))
 
 
-def _for(label, args):
-    """``pd_rhs``'s arguments in the layout of ``label``'s kernel: b29ff13's also took the corners' band in radians
-    and no hinge scratch (the same arrays otherwise, so its outputs land where the new layout reads them)."""
-    if label != "old":
+def _for(label, args, module=None):
+    """``pd_rhs``'s arguments in the layout of ``label``'s kernel (``module``'s): b29ff13's also took the corners'
+    band in radians and no hinge scratch (the same arrays otherwise, so its outputs land where the new layout reads
+    them); an old kernel of today's layout (``--old`` a later commit) takes them as they are."""
+    if label != "old" or (module is not None and module.pd_rhs.py_func.__code__.co_argcount == len(args)):
         return args
     angles = [np.arccos(np.clip(args[k], -1.0, 1.0)) for k in (13, 14)]
     return args[:OLD_ANGLES] + angles + args[OLD_ANGLES:-1]
@@ -165,14 +166,15 @@ def measure(case, last, kernels, repeat):
         for lag in (False, True):
             args = _copy(rhs, RHS_OUT)
             args[LAG] = lag
-            calls[(label, "fresh" if not lag else "lagged")] = (lambda m=module, a=_for(label, args): m.pd_rhs(*a))
+            a = _for(label, args, module)
+            calls[(label, "fresh" if not lag else "lagged")] = (lambda m=module, a=a: m.pd_rhs(*a))
         args = _forces_for(module, _copy(forces, FORCES_OUT))
         calls[(label, "forces")] = (lambda m=module, a=args: m.contact_forces(*a))
         # the outputs of one call each on fresh copies of the same arguments
         for lag in (False, True):
             args = _copy(rhs, RHS_OUT)
             args[LAG] = lag
-            module.pd_rhs(*_for(label, args))
+            module.pd_rhs(*_for(label, args, module))
             outputs[(label, lag)] = args[B]
         args = _forces_for(module, _copy(forces, FORCES_OUT))
         module.contact_forces(*args)

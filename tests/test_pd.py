@@ -196,7 +196,7 @@ def test_corners_clearly_inside_their_band_are_left_as_the_full_test_leaves_them
     cos_hi = np.where(at_end, cos, np.cos(t_hi))
     w = rng.uniform(1.0, 100.0, len(c))
     got = np.zeros_like(x)
-    _corners(x, got, ci, cj, ck, cos_lo, cos_hi, w)
+    _corners(x, got, ci, cj, ck, cos_lo, cos_hi, w, False)
     want = np.zeros_like(x)
     projected = 0
     for m in range(len(c)):

@@ -73,9 +73,10 @@ def _band(x, i, j, lo, hi):
 
 
 @njit
-def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, w):
+def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, w, want):
     """The corner angle elements (module docstring) into ``b``; ``cos_lo``, ``cos_hi`` are the cosines of the
-    band's smallest and largest angle. Returns their energy ``w (|u - u'|^2 + |v - v'|^2) / 2``, J."""
+    band's smallest and largest angle. Returns their energy ``w (|u - u'|^2 + |v - v'|^2) / 2``, J, if ``want``
+    (else 0)."""
     energy = 0.0
     for c in range(ci.shape[0]):
         i, j, k = ci[c], cj[c], ck[c]
@@ -89,8 +90,9 @@ def _corners(x, b, ci, cj, ck, cos_lo, cos_hi, w):
         lm = ll * _MARGIN
         if not (cos_hi[c] * ll + lm < dot < cos_lo[c] * ll - lm):
             tx, ty, tz, sx, sy, sz = _corner_targets(ux, uy, uz, vx, vy, vz, qu, qv, dot, ll, cos_lo[c], cos_hi[c])
-            energy += 0.5 * w[c] * ((ux - tx) ** 2 + (uy - ty) ** 2 + (uz - tz) ** 2
-                                    + (vx - sx) ** 2 + (vy - sy) ** 2 + (vz - sz) ** 2)
+            if want:
+                energy += 0.5 * w[c] * ((ux - tx) ** 2 + (uy - ty) ** 2 + (uz - tz) ** 2
+                                        + (vx - sx) ** 2 + (vy - sy) ** 2 + (vz - sz) ** 2)
             ux, uy, uz, vx, vy, vz = tx, ty, tz, sx, sy, sz
         _scatter(b, k, i, w[c], ux, uy, uz)
         _scatter(b, k, j, w[c], vx, vy, vz)
@@ -166,10 +168,10 @@ def _add_push(x, inv_mass, pt_v, pt_b, p, nx, ny, nz, h, gap, count):
 
 
 @njit
-def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count):
+def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap, count, want):
     """Add ``w_c t`` (module docstring, contacts) of every free vertex into ``b``; ``gap`` (n, 3) m keeps each
     vertex's push (its target less the iterate), ``count`` (n,) is scratch. Returns the pushes' energy
-    ``sum w_c |gap|^2 / 2``, J."""
+    ``sum w_c |gap|^2 / 2``, J, if ``want`` (else 0)."""
     energy = 0.0
     n = x.shape[0]
     for i in range(n):
@@ -190,7 +192,8 @@ def _contact_targets(x, inv_mass, pt_v, pt_b, c_n, c_h, c_n2, c_nq2, c_h2, c_lis
         b[i, 0] += w_c[i] * (x[i, 0] + gap[i, 0])
         b[i, 1] += w_c[i] * (x[i, 1] + gap[i, 1])
         b[i, 2] += w_c[i] * (x[i, 2] + gap[i, 2])
-        energy += 0.5 * w_c[i] * (gap[i, 0] * gap[i, 0] + gap[i, 1] * gap[i, 1] + gap[i, 2] * gap[i, 2])
+        if want:
+            energy += 0.5 * w_c[i] * (gap[i, 0] * gap[i, 0] + gap[i, 1] * gap[i, 1] + gap[i, 2] * gap[i, 2])
     return energy
 
 
@@ -312,19 +315,17 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
     if not lag:
         energy = _forces_outside(x, d_off, s_i, s_j, s_lo, s_hi, s_w, h_i, h_k, h_rest, f_lag, hinge_work)
     for i in range(n):
-        dx, dy, dz = x[i, 0] - y[i, 0], x[i, 1] - y[i, 1], x[i, 2] - y[i, 2]
-        energy += 0.5 * mh2[i] * (dx * dx + dy * dy + dz * dz)
         for c in range(3):
             b[i, c] = mh2[i] * y[i, c] + f_lag[i, c]
-    for e in range(e_i.shape[0]):
-        i, j = e_i[e], e_j[e]
-        px, py, pz = _band(x, i, j, e_lo[e], e_hi[e])
-        dx, dy, dz = x[j, 0] - x[i, 0] - px, x[j, 1] - x[i, 1] - py, x[j, 2] - x[i, 2] - pz
-        energy += 0.5 * e_w[e] * (dx * dx + dy * dy + dz * dz)
-        _scatter(b, i, j, e_w[e], px, py, pz)
-    energy += _corners(x, b, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_w)
+    if lag:  # the plain iterations' every other call: no energy to give, none summed (they are the hot path)
+        for e in range(e_i.shape[0]):
+            px, py, pz = _band(x, e_i[e], e_j[e], e_lo[e], e_hi[e])
+            _scatter(b, e_i[e], e_j[e], e_w[e], px, py, pz)
+    else:
+        energy += _inertia(x, y, mh2) + _bands(x, b, e_i, e_j, e_lo, e_hi, e_w)
+    energy += _corners(x, b, a_i, a_j, a_k, a_cos_lo, a_cos_hi, a_w, not lag)
     energy += _contact_targets(x, inv_mass, pts_v, pts_b, c_n, c_h, c_n2, c_nq2, c_h2, c_list, n_c, w_c, b, gap,
-                               count)
+                               count, not lag)
     for i in range(n):
         if lam[i] > 0.0:
             b[i, 0] += lam[i] * nrm[i, 0]
@@ -339,6 +340,29 @@ def pd_rhs(x, y, mh2, inv_mass, d_off, e_i, e_j, e_lo, e_hi, e_w, a_i, a_j, a_k,
     for q in range(pin_idx.shape[0]):
         p = pin_idx[q]
         b[p, 0], b[p, 1], b[p, 2] = x[p, 0], x[p, 1], x[p, 2]
+    return energy
+
+
+@njit(inline="always")
+def _inertia(x, y, mh2):
+    """``sum m |x - y|^2 / (2 h^2)``, J (``mh2`` is ``m / h^2``)."""
+    energy = 0.0
+    for i in range(x.shape[0]):
+        dx, dy, dz = x[i, 0] - y[i, 0], x[i, 1] - y[i, 1], x[i, 2] - y[i, 2]
+        energy += 0.5 * mh2[i] * (dx * dx + dy * dy + dz * dz)
+    return energy
+
+
+@njit(inline="always")
+def _bands(x, b, e_i, e_j, e_lo, e_hi, e_w):
+    """The distance bands in ``A`` into ``b`` (``w S^T p``); returns their energy ``w |S x - p|^2 / 2``, J."""
+    energy = 0.0
+    for e in range(e_i.shape[0]):
+        i, j = e_i[e], e_j[e]
+        px, py, pz = _band(x, i, j, e_lo[e], e_hi[e])
+        dx, dy, dz = x[j, 0] - x[i, 0] - px, x[j, 1] - x[i, 1] - py, x[j, 2] - x[i, 2] - pz
+        energy += 0.5 * e_w[e] * (dx * dx + dy * dy + dz * dz)
+        _scatter(b, i, j, e_w[e], px, py, pz)
     return energy
 
 
