@@ -34,9 +34,10 @@ def test_cantilever_bending_length_matches_peirce_at_10_mm(fabric):
                          ids=["chiffon-10mm", "canvas-5mm"])
 def test_cantilever_on_the_projective_solver_droops_as_peirce_says(fabric, edge):
     """At Peirce's overhang the strip's tip falls 41.5 deg on the projective solver too (within 3 deg: ~3.5 % of the
-    bending length; the chiffon's 38.7 is its bending length's +2.4 %, the Gauss-Seidel solver's +4.2 %): its quasi-Newton iterations rest the strip at its equilibrium (the plain iterations: 86 deg at
-    1/120 s), and with the compression share on the edges the bending is the hinges' alone at any spacing (with
-    the bend springs silk's bending length was +41 % at 10 mm)."""
+    bending length; the chiffon's 38.7 is its bending length's +2.4 %, the Gauss-Seidel solver's +4.2 %): its
+    quasi-Newton iterations rest the strip at its equilibrium (the plain iterations: 86 deg at 1/120 s), and with the
+    compression share on the edges the bending is the hinges' alone at any spacing (with the bend springs silk's
+    bending length was +41 % at 10 mm)."""
     material = _fabric(*fabric)
     angle, info = droop(material, peirce_overhang(material.bending_length), edge, solver="pd")
     assert info["settled"]

@@ -144,7 +144,7 @@ class PDSettings(VerletSettings):
         cloth's resistance to in-plane compression) on the polygon edges shorter than their rest length, in
         place of the bend springs: a bend spring joins second neighbours, which come closer as the cloth folds,
         so it resists bending too, by an amount that grows with the mesh's spacing (the cantilever's bending
-        length +8 % (cotton) to +41 % (silk) at 10 mm with them, within 2.2 % on the edges; docs/solver.md); the
+        length +8.5 % (denim) to +41 % (silk) at 10 mm with them, within 2.2 % on the edges; docs/solver.md); the
         bending is then the hinges' alone.
     """
 

@@ -14,10 +14,10 @@ own cloth: hinges for bending, stretch constraints, the corners' shear limit and
 vertex is turned round the centre by up to a tenth of the spacing (seeded): a perfect polar grid would
 fold with its own symmetry, a real fabric folds with its unevenness. It falls from flat in
 :class:`vfit_engine.sim.solver_verlet.SolverVerlet` (or the projective solver,
-:func:`vfit_engine.textile.settle.specimen_solver`, at :data:`PD_STEP`) until still. ``S`` is the union of the cloth's triangles
-and the support's disc projected on the horizontal plane (rasterised, 0.5 mm pixels), ``Sf`` and ``Sd`` the
-flat mesh's outer and inner rims' areas (polygons a little inside their circles). Nodes are the maxima of
-the shadow's outline ``r(phi)`` that stand out by more than 5 mm, and a quarter of its depth, from the
+:func:`vfit_engine.textile.settle.specimen_solver`, at :data:`PD_STEP`) until still. ``S`` is the union of the
+cloth's triangles and the support's disc projected on the horizontal plane (rasterised, 0.5 mm pixels), ``Sf``
+and ``Sd`` the flat mesh's outer and inner rims' areas (polygons a little inside their circles). Nodes are the
+maxima of the shadow's outline ``r(phi)`` that stand out by more than 5 mm, and a quarter of its depth, from the
 troughs beside them. (A triangle mesh with stretch constraints on every edge has no shear model: its
 triangles only shear by shrinking in the free compression band, and it drapes 10-15 points lower.)
 """
