@@ -175,7 +175,7 @@ class SolverPD(BodyMotion):
         """Scale gravity by ``gravity`` from the next step on (0 while a sewing closes the seams)."""
         self._gravity = np.ascontiguousarray(np.asarray(self.settings.gravity, dtype=np.float64) * float(gravity))
         if self._dt is not None:
-            self._g_h2 = np.where((self._inv_mass > 0)[:, None], self._gravity * (self._dt * self._dt), 0.0)
+            self._gravity_step()
 
     def admit(self, pos, vertices):
         """Widen the bands among ``vertices`` to admit their lengths at ``pos`` (as :meth:`SolverVerlet.admit`)."""
@@ -329,7 +329,12 @@ class SolverPD(BodyMotion):
         self._qn_s, self._qn_t = np.zeros((m, n, 3)), np.zeros((m, n, 3))
         self._qn_rho, self._qn_alpha = np.zeros(m), np.zeros(m)
         self._qn_at = [m - 1, 0]  # the newest slot, the pairs held (a new step size starts afresh)
-        self._g_h2 = np.where((self._inv_mass > 0)[:, None], self._gravity * (dt * dt), 0.0)
+        self._gravity_step()
+
+    def _gravity_step(self):
+        """``g h^2`` on the free vertices (n, 3) m, at the step ``self._dt`` and gravity as weighed: what the
+        quasi-Newton iterations take off the prediction to start from."""
+        self._g_h2 = np.where((self._inv_mass > 0)[:, None], self._gravity * (self._dt * self._dt), 0.0)
 
     @property
     def constraint_count(self):
@@ -433,23 +438,30 @@ class SolverPD(BodyMotion):
         contact_velocity(x, xp, self._inv_mass, self._push, float(c.friction),
                          math.exp(-float(c.damping) * dt), self._hot, self._push_u, self._push_w, dt, bool(c.stick))
 
+    def _local_step(self, x, xp, dt, n_c, moving, lag):
+        """One iteration's right-hand side ``self._b`` at ``x``: Uzawa's contact forces updated, the local step
+        (the forces outside the matrix kept from an earlier iterate with ``lag``) and the friction; returns the
+        step's energy at ``x`` less the contact forces' (NaN with ``lag``; :func:`~vfit_engine.kernels.pd.pd_rhs`)."""
+        st, c = self.settings, self.contact
+        if st.contact_rho > 0:
+            contact_forces(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2, self._c_nq2,
+                           self._c_h2, self._c_list, n_c, self._rho, self._lam, self._nrm, self._plane, self._acc_g,
+                           self._acc_n, self._acc_w, moving)
+        e = pd_rhs(x, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2, self._c_nq2,
+                   self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap, self._count, self._f_lag, lag,
+                   self._lam, self._nrm, self._hinge_work)
+        return e + contact_friction(x, xp, self._inv_mass, self._w_c, self._gap, self._lam, self._nrm,
+                                    float(st.friction_in_solve) * float(c.friction), self._push_u, self._push_w, dt,
+                                    self._b)
+
     def _iterate(self, x, xp, dt, n_c, moving, factor):
         """The plain iterations of a step: Uzawa's contact forces, the local step, the global solve
         (Chebyshev-accelerated with ``PDSettings.chebyshev_rho``)."""
-        st, c = self.settings, self.contact
+        st = self.settings
         np.copyto(self._xprev, x)
         omega = 1.0
         for k in range(int(st.iterations)):
-            if st.contact_rho > 0:
-                contact_forces(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
-                               self._c_nq2, self._c_h2, self._c_list, n_c, self._rho, self._lam, self._nrm,
-                               self._plane, self._acc_g, self._acc_n, self._acc_w, moving)
-            pd_rhs(x, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
-                   self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
-                   self._count, self._f_lag, k % int(st.hinge_every) != 0, self._lam, self._nrm,
-                   self._hinge_work)
-            contact_friction(x, xp, self._inv_mass, self._w_c, self._gap, self._lam, self._nrm,
-                             float(st.friction_in_solve) * float(c.friction), self._push_u, self._push_w, dt, self._b)
+            self._local_step(x, xp, dt, n_c, moving, k % int(st.hinge_every) != 0)
             np.copyto(self._xh, self._b)
             sn_solve3(*factor, self._xh, self._work)
             omega = chebyshev(x, self._xh, self._xprev, k, int(st.chebyshev_delay), float(st.chebyshev_rho), omega)
@@ -462,7 +474,7 @@ class SolverPD(BodyMotion):
         its end for nothing (Armijo's test, the contact forces held): one that did not lower it is undone and the
         history dropped (its pairs no longer fit the cloth), as is a direction that does not descend or, under a
         moving body, one that moves a vertex more than ``PDSettings.qn_move_limit``; the plain step follows."""
-        st, c, pr = self.settings, self.contact, self._pairs
+        st, pr = self.settings, self._pairs
         s_, t_, rho, alpha, at = self._qn_s, self._qn_t, self._qn_rho, self._qn_alpha, self._qn_at
         indptr, indices, data = self._factor.matrix_arrays
         g, g0, g0_old, r, x_old = self._g, self._g0, self._g0_old, self._xh, self._xprev
@@ -471,16 +483,7 @@ class SolverPD(BodyMotion):
         gr = e_ref = 0.0  # the last move's g . r (0: a plain one, not checked) and the energy it started from
         for k in range(last + 1):
             held = uzawa_energy(self._lam, self._nrm, x)
-            if st.contact_rho > 0:
-                contact_forces(x, self._inv_mass, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
-                               self._c_nq2, self._c_h2, self._c_list, n_c, self._rho, self._lam, self._nrm,
-                               self._plane, self._acc_g, self._acc_n, self._acc_w, moving)
-            e = pd_rhs(x, self._y, *self._arrays, self._pt_v, self._pt_b, self._c_n, self._c_h, self._c_n2,
-                       self._c_nq2, self._c_h2, self._c_list, n_c, self._w_c, self._b, self._gap,
-                       self._count, self._f_lag, False, self._lam, self._nrm, self._hinge_work)
-            e += contact_friction(x, xp, self._inv_mass, self._w_c, self._gap, self._lam, self._nrm,
-                                  float(st.friction_in_solve) * float(c.friction), self._push_u, self._push_w, dt,
-                                  self._b)
+            e = self._local_step(x, xp, dt, n_c, moving, False)
             if pr["damped"]:
                 e += pair_energy(x, pr["i"], pr["j"], pr["dw"])
             # (rounding allowed for: near the rest the energy's change is at its last digits)
