@@ -485,8 +485,8 @@ def contact_friction(x, x0, inv_mass, w_c, gap, lam, nrm, friction, push_u, push
         t = math.sqrt(tx * tx + ty * ty + tz * tz)
         if t <= 0.0:
             continue
+        s = min(1.0, friction * force / (w * t))  # (as it was: the drapes' bits hang on its rounding)
         cone = friction * force / w
-        s = min(1.0, cone / t)
         energy += w * (0.5 * t * t if t <= cone else cone * (t - 0.5 * cone))
         b[i, 0] -= w * s * tx
         b[i, 1] -= w * s * ty
